@@ -1,0 +1,16 @@
+//! Geometry core: indexed triangle meshes in f64 millimetres, their topology, rigid and similarity
+//! registration (Horn 1987) and Loop subdivision.
+
+pub mod horn;
+pub mod loop_subdivision;
+pub mod mesh;
+pub mod topology;
+
+pub use horn::{absolute_orientation, Registration};
+pub use mesh::TriMesh;
+pub use topology::Topology;
+
+/// 3D point in millimetres.
+pub type Point = nalgebra::Point3<f64>;
+/// 3D vector in millimetres (or unitless for directions).
+pub type Vec3 = nalgebra::Vector3<f64>;

@@ -1,0 +1,11 @@
+//! Mesh file formats. Every reader takes the file's length unit explicitly and returns
+//! millimetres; every writer writes to a temporary file and renames it (see [`atomic`]).
+
+pub mod atomic;
+pub mod gltf;
+pub mod obj;
+pub mod ply;
+pub mod stl;
+pub mod units;
+
+pub use units::Units;

@@ -1,0 +1,23 @@
+//! # ergohand
+//!
+//! Individual digital hands from motion-capture data, after Endo, Tada & Mochimaru (2014),
+//! "Reconstructing individual hand models from motion capture data", J. Comput. Des. Eng. 1(1).
+//!
+//! The data flows one way, one module per stage of the method:
+//! [`mocap`] (subject folders, C3D trials) -> link model -> skin -> tet -> pose -> grasp,
+//! with validation reading the outputs. Underneath sit [`geometry`] (meshes, Horn's absolute
+//! orientation, Loop subdivision), [`io`] (mesh formats), [`skeleton`] (the link tree, joint
+//! frames, forward kinematics and limits) and [`template`] (the generic hand and its spec).
+//!
+//! All lengths are millimetres in f64; units are converted at the edges (readers and writers).
+
+pub mod anatomy;
+pub mod error;
+pub mod geometry;
+pub mod io;
+pub mod mocap;
+pub mod render;
+pub mod skeleton;
+pub mod template;
+
+pub use error::{Error, Result};
