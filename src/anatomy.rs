@@ -310,7 +310,14 @@ pub fn landmark_names() -> Vec<&'static str> {
     let mut v: Vec<&'static str> = palm_markers().to_vec();
     v.extend(Joint::ALL.iter().map(|j| j.name()));
     v.extend(["T_NAIL", "I_NAIL", "M_NAIL", "R_NAIL", "L_NAIL"]);
-    v.extend(["T_MC_1", "T_MC_2", "I_MCP_LAT", "L_MCP_LAT", "WRIST_RAD", "WRIST_ULN"]);
+    v.extend([
+        "T_MC_1",
+        "T_MC_2",
+        "I_MCP_LAT",
+        "L_MCP_LAT",
+        "WRIST_RAD",
+        "WRIST_ULN",
+    ]);
     v
 }
 
@@ -412,11 +419,20 @@ mod tests {
         assert_eq!(Joint::TMcp.dof(), 1);
         assert_eq!(Joint::TCmc.dof(), 3);
         assert_eq!(Joint::LMcp.dof(), 3);
-        assert_eq!(Finger::Ring.joints(), [Joint::RMcp, Joint::RPip, Joint::RDip]);
-        assert_eq!(Finger::Thumb.links(), [Link::TMeta, Link::TProx, Link::TDist]);
+        assert_eq!(
+            Finger::Ring.joints(),
+            [Joint::RMcp, Joint::RPip, Joint::RDip]
+        );
+        assert_eq!(
+            Finger::Thumb.links(),
+            [Link::TMeta, Link::TProx, Link::TDist]
+        );
         assert_eq!(Link::IDist.parent(), Some(Link::IMid));
         assert_eq!(Link::Palm.parent(), Some(Link::Arm));
-        assert_eq!(Joint::ALL.iter().map(|j| j.dof()).sum::<usize>(), 6 * 3 + 10);
+        assert_eq!(
+            Joint::ALL.iter().map(|j| j.dof()).sum::<usize>(),
+            6 * 3 + 10
+        );
     }
 
     #[test]

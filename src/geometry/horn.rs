@@ -99,7 +99,9 @@ pub fn absolute_orientation(
         None => vec![1.0; n],
     };
     if let Some(i) = w.iter().position(|x| !x.is_finite() || *x < 0.0) {
-        return Err(Error::invalid(format!("registration weight {i} is negative or not finite")));
+        return Err(Error::invalid(format!(
+            "registration weight {i} is negative or not finite"
+        )));
     }
     let active = w.iter().filter(|&&x| x > 0.0).count();
     if active < 3 {
@@ -109,7 +111,11 @@ pub fn absolute_orientation(
     }
     let wsum: f64 = w.iter().sum();
     let centroid = |pts: &[Point]| -> Vec3 {
-        pts.iter().zip(&w).map(|(p, wi)| p.coords * *wi).sum::<Vec3>() / wsum
+        pts.iter()
+            .zip(&w)
+            .map(|(p, wi)| p.coords * *wi)
+            .sum::<Vec3>()
+            / wsum
     };
     let (cs, ct) = (centroid(source), centroid(target));
 
@@ -252,7 +258,12 @@ mod tests {
         assert!((r.translation - t.translation).norm() < 5.0 * trans_sd * 3f64.sqrt() + 0.05);
         // The residual estimates the noise: E[rms^2] = 2 sigma^2 * 3 (1 - 6/(3n)).
         let expect = (2.0 * 3.0f64).sqrt() * sigma;
-        assert!((r.rms - expect).abs() < 0.1 * expect, "rms {} vs {}", r.rms, expect);
+        assert!(
+            (r.rms - expect).abs() < 0.1 * expect,
+            "rms {} vs {}",
+            r.rms,
+            expect
+        );
         let _ = gaussian(&mut u);
     }
 

@@ -22,8 +22,13 @@ impl TriMesh {
     /// A mesh from vertices and faces; fails when a face names a vertex that does not exist,
     /// repeats a vertex, or a coordinate is not finite.
     pub fn new(vertices: Vec<Point>, faces: Vec<[usize; 3]>) -> Result<Self> {
-        if let Some(i) = vertices.iter().position(|p| !p.coords.iter().all(|c| c.is_finite())) {
-            return Err(Error::invalid(format!("vertex {i} has a non-finite coordinate")));
+        if let Some(i) = vertices
+            .iter()
+            .position(|p| !p.coords.iter().all(|c| c.is_finite()))
+        {
+            return Err(Error::invalid(format!(
+                "vertex {i} has a non-finite coordinate"
+            )));
         }
         for (fi, f) in faces.iter().enumerate() {
             if let Some(&v) = f.iter().find(|&&v| v >= vertices.len()) {
@@ -66,7 +71,11 @@ impl TriMesh {
     /// Unit normal of every face (zero for a degenerate face).
     pub fn face_normals(&self) -> Vec<Vec3> {
         (0..self.faces.len())
-            .map(|f| self.face_cross(f).try_normalize(0.0).unwrap_or_else(Vec3::zeros))
+            .map(|f| {
+                self.face_cross(f)
+                    .try_normalize(0.0)
+                    .unwrap_or_else(Vec3::zeros)
+            })
             .collect()
     }
 
@@ -129,14 +138,18 @@ impl TriMesh {
     /// Axis-aligned bounding box `(min, max)`; `None` for an empty mesh.
     pub fn bounds(&self) -> Option<(Point, Point)> {
         let first = *self.vertices.first()?;
-        Some(self.vertices.iter().fold((first, first), |(lo, hi), p| {
-            (lo.inf(p), hi.sup(p))
-        }))
+        Some(
+            self.vertices
+                .iter()
+                .fold((first, first), |(lo, hi), p| (lo.inf(p), hi.sup(p))),
+        )
     }
 
     /// Length of the bounding-box diagonal, mm (0 for an empty mesh).
     pub fn diagonal(&self) -> f64 {
-        self.bounds().map(|(lo, hi)| (hi - lo).norm()).unwrap_or(0.0)
+        self.bounds()
+            .map(|(lo, hi)| (hi - lo).norm())
+            .unwrap_or(0.0)
     }
 
     /// Merge vertices closer than `tol` (mm) and drop faces that collapse; returns the welded
@@ -189,7 +202,13 @@ impl TriMesh {
             .map(|f| [remap[f[0]], remap[f[1]], remap[f[2]]])
             .filter(|f| f[0] != f[1] && f[1] != f[2] && f[0] != f[2])
             .collect();
-        (TriMesh { vertices: kept, faces }, remap)
+        (
+            TriMesh {
+                vertices: kept,
+                faces,
+            },
+            remap,
+        )
     }
 
     /// Apply a rigid transform to every vertex.
@@ -314,7 +333,11 @@ pub(crate) mod tests {
 
     #[test]
     fn new_rejects_bad_indices_and_nan() {
-        let p = vec![Point::origin(), Point::new(1., 0., 0.), Point::new(0., 1., 0.)];
+        let p = vec![
+            Point::origin(),
+            Point::new(1., 0., 0.),
+            Point::new(0., 1., 0.),
+        ];
         assert!(TriMesh::new(p.clone(), vec![[0, 1, 3]]).is_err());
         assert!(TriMesh::new(p.clone(), vec![[0, 1, 1]]).is_err());
         let mut q = p;
