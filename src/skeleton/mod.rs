@@ -19,6 +19,7 @@
 pub mod forward_kinematics;
 pub mod frames;
 pub mod limits;
+pub mod record;
 
 pub use forward_kinematics::Pose;
 pub use frames::{frame_from_axis, frame_from_long_axis};

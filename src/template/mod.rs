@@ -1,1 +1,177 @@
-//! (being written)
+//! The template hand M_temp^temp of the seed paper (section 3.5): the vendored `generic-hand`
+//! surface, welded and in millimetres, refined by two Loop subdivisions to 37,024 faces, with
+//! its skin weights per link, its skeleton and its spec (landmarks, dimension vertex pairs,
+//! palm landmarks, joint centres).
+
+pub mod generic_hand;
+pub mod landmark_rule;
+pub mod picture;
+pub mod spec;
+
+pub use generic_hand::{load_base_hand, BaseHand, LinkWeights};
+pub use spec::{HandSpec, TemplateSpec};
+
+use crate::anatomy::Side;
+use crate::error::Result;
+use crate::geometry::loop_subdivision::loop_subdivide_n;
+use crate::geometry::TriMesh;
+use crate::skeleton::Skeleton;
+use std::path::Path;
+
+/// Loop subdivision levels from the base asset to the high-resolution template
+/// (2314 -> 9256 -> 37,024 faces; the seed paper's template had 59,904).
+pub const SUBDIVISION_LEVELS: usize = 2;
+
+/// The high-resolution template of one hand with everything later stages need.
+#[derive(Clone, Debug)]
+pub struct TemplateHand {
+    /// Which hand.
+    pub side: Side,
+    /// High-resolution surface, mm; the first `base.mesh.n_vertices()` vertices are the base
+    /// vertices (Loop subdivision keeps their indices).
+    pub mesh: TriMesh,
+    /// Skinning weights per vertex of `mesh` over [`crate::anatomy::Link::ALL`], carried
+    /// through the subdivision stencils and renormalised.
+    pub weights: LinkWeights,
+    /// Joint centres and frames of the template.
+    pub skeleton: Skeleton,
+    /// The base asset (welded, unsubdivided) it was made from.
+    pub base: BaseHand,
+    /// Landmarks, dimension pairs, palm landmarks and joint centres on `mesh`.
+    pub spec: HandSpec,
+}
+
+/// The link that dominates each vertex's weights.
+pub fn dominant_links(weights: &LinkWeights) -> Vec<usize> {
+    weights
+        .iter()
+        .map(|w| {
+            w.iter()
+                .max_by(|a, b| a.1.total_cmp(&b.1))
+                .map(|x| x.0)
+                .unwrap_or(0)
+        })
+        .collect()
+}
+
+/// The high-resolution mesh, weights and skeleton of `side`, without a spec.
+fn refine(side: Side) -> Result<(BaseHand, TriMesh, LinkWeights)> {
+    let base = load_base_hand(side)?;
+    let sub = loop_subdivide_n(&base.mesh, SUBDIVISION_LEVELS);
+    let weights = sub.apply_sparse(&base.weights, 4);
+    Ok((base, sub.mesh, weights))
+}
+
+/// Load the template of `side` with the spec shipped in the toolkit, checked against the mesh.
+pub fn load_template(side: Side) -> Result<TemplateHand> {
+    let (base, mesh, weights) = refine(side)?;
+    let spec = TemplateSpec::embedded()?.hand(side).clone();
+    spec.check(&mesh, Path::new("assets/generic-hand/template-spec.toml"))?;
+    Ok(TemplateHand {
+        side,
+        skeleton: base.skeleton.clone(),
+        mesh,
+        weights,
+        base,
+        spec,
+    })
+}
+
+/// Derive the spec of both hands from the rule of [`landmark_rule`] (what the shipped file holds).
+pub fn derive_template_spec() -> Result<TemplateSpec> {
+    let hand = |side| -> Result<HandSpec> {
+        let (base, mesh, weights) = refine(side)?;
+        landmark_rule::derive_hand_spec(&mesh, &base.skeleton, side, &dominant_links(&weights))
+    };
+    Ok(TemplateSpec {
+        right: hand(Side::Right)?,
+        left: hand(Side::Left)?,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::anatomy::{Dimension, Joint};
+    use crate::skeleton::forward_kinematics::{link_transforms, posed_centres};
+    use crate::skeleton::Pose;
+
+    #[test]
+    fn high_resolution_template_is_closed_manifold_with_weights() {
+        for side in [Side::Right, Side::Left] {
+            let t = load_template(side).unwrap();
+            assert_eq!(t.mesh.n_faces(), 37_024, "{side}");
+            t.mesh.check_closed_manifold().unwrap();
+            t.base.mesh.check_closed_manifold().unwrap();
+            assert_eq!(t.mesh.topology().euler_characteristic(), 2);
+            // Loop subdivision shrinks a surface slightly but not by much.
+            let (v0, v1) = (t.base.mesh.signed_volume(), t.mesh.signed_volume());
+            assert!(v1 < v0 && v1 > 0.9 * v0, "{side}: {v0} -> {v1}");
+            assert_eq!(t.weights.len(), t.mesh.n_vertices());
+            for w in &t.weights {
+                assert!(!w.is_empty() && w.len() <= 4);
+                assert!((w.iter().map(|x| x.1).sum::<f64>() - 1.0).abs() < 1e-9);
+            }
+            // The base vertices keep their indices: their weights are unchanged in support.
+            assert_eq!(&t.mesh.faces.len(), &(t.base.mesh.n_faces() * 16));
+        }
+    }
+
+    #[test]
+    fn zero_pose_reproduces_template_joint_centres() {
+        for side in [Side::Right, Side::Left] {
+            let t = load_template(side).unwrap();
+            let c = posed_centres(&t.skeleton, &link_transforms(&t.skeleton, &Pose::zero()));
+            for j in Joint::ALL {
+                let want = t.spec.joint_centres[j.name()];
+                let got = c[j.index()];
+                for k in 0..3 {
+                    assert!((got[k] - want[k]).abs() < 1e-9, "{side} {j}");
+                }
+            }
+        }
+    }
+
+    /// The shipped spec is exactly what the documented rule derives: every index has a provenance.
+    #[test]
+    fn shipped_spec_is_reproduced_by_the_rule() {
+        let derived = derive_template_spec().unwrap();
+        let shipped = TemplateSpec::embedded().unwrap();
+        for side in [Side::Right, Side::Left] {
+            let (d, s) = (derived.hand(side), shipped.hand(side));
+            assert_eq!(d.landmarks, s.landmarks, "{side}: run `ergohand template --out DIR` and copy template-spec.toml to assets/generic-hand/");
+            assert_eq!(d.dimensions, s.dimensions, "{side}");
+            assert_eq!(d.palm, s.palm, "{side}");
+            for (k, c) in &d.joint_centres {
+                let o = s.joint_centres[k];
+                assert!((0..3).all(|i| (c[i] - o[i]).abs() < 1e-9), "{side} {k}");
+            }
+        }
+    }
+
+    #[test]
+    fn landmarks_sit_where_the_spec_says() {
+        for side in [Side::Right, Side::Left] {
+            let t = load_template(side).unwrap();
+            let sk = &t.skeleton;
+            let v = |name: &str| t.mesh.vertices[t.spec.landmarks[name]];
+            for j in Joint::ALL {
+                // Over the dorsal side of the joint, a few mm to a couple of cm from its centre.
+                let r = v(j.name()) - sk.centre(j);
+                assert!(r.dot(&sk.joint(j).y()) > 0.8 * r.norm(), "{side} {j}");
+                assert!((2.0..25.0).contains(&r.norm()), "{side} {j}: {}", r.norm());
+            }
+            // Radial landmarks lie radially of ulnar ones.
+            let radial = sk.centre(Joint::IMcp) - sk.centre(Joint::LMcp);
+            assert!((v("I_MCP_LAT") - v("L_MCP_LAT")).dot(&radial) > 0.0);
+            assert!((v("WRIST_RAD") - v("WRIST_ULN")).dot(&radial) > 0.0);
+            // Every dimension of the template is a plausible adult hand dimension.
+            for d in Dimension::all() {
+                let [a, b] = t.spec.dimension(d).unwrap();
+                let len = (t.mesh.vertices[a] - t.mesh.vertices[b]).norm();
+                let (lo, hi) = d.plausible_range_mm();
+                assert!((lo..hi).contains(&len), "{side} {d}: {len:.1} mm");
+            }
+        }
+    }
+}

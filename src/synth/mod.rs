@@ -1,0 +1,544 @@
+//! Simulated subjects with ground truth (`ergohand synth`): subject folders exactly as a lab
+//! would produce them (subject-format spec, sections 1-2), together with the truth, so that every
+//! stage of the pipeline is measured rather than assumed.
+//!
+//! The true hand is the template changed the way hands differ ([`anthropometry`]), roughened by a
+//! smooth random surface field ([`surface_field`]) and, optionally, held in a reference posture
+//! that differs from the template's. Its CT-like reference surface is a voxel scan of it
+//! ([`voxel_scan`]). The capture ([`capture`], [`motion`]) moves it through the calibration motions
+//! of the seed paper with the errors of a real session.
+
+pub mod anthropometry;
+pub mod capture;
+pub mod motion;
+pub mod surface_field;
+pub mod voxel_scan;
+
+use crate::anatomy::{landmark_names, palm_markers, Dimension, Finger, Joint, Link, Side};
+use crate::error::{Error, Result};
+use crate::geometry::{Point, TriMesh, Vec3};
+use crate::mocap::c3d::write_c3d;
+use crate::mocap::subject::Subject;
+use crate::mocap::trajectories::Trajectories;
+use crate::rng::Rng;
+use crate::skeleton::forward_kinematics::link_transforms;
+use crate::skeleton::record::{joint_records, JointRecord};
+use crate::skeleton::{Pose, Skeleton};
+use crate::template::{load_template, TemplateHand};
+use anthropometry::{posed_skeleton, shape_hand, ShapeParams};
+use capture::{plate_markers, simulate_trial, ErrorModel, MarkerDef};
+use motion::Trial;
+use nalgebra::{Isometry3, Matrix3, Rotation3, Translation3, UnitQuaternion};
+use serde::{Deserialize, Serialize};
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+use std::str::FromStr;
+
+/// Named sets of error and motion parameters.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Preset {
+    /// 0.2 mm noise, 1-3 mm soft-tissue artefact, 3 % gaps, full ranges of motion.
+    Typical,
+    /// As typical with half the ranges of motion.
+    SmallRom,
+    /// Double noise, artefact and gaps.
+    Noisy,
+    /// No error at all (for exactness tests); the hand still drifts, as it is not clamped.
+    Clean,
+}
+
+impl Preset {
+    /// All presets.
+    pub const ALL: [Preset; 4] = [Preset::Typical, Preset::SmallRom, Preset::Noisy, Preset::Clean];
+
+    /// The preset's name on the command line.
+    pub fn name(self) -> &'static str {
+        match self {
+            Preset::Typical => "typical",
+            Preset::SmallRom => "small-rom",
+            Preset::Noisy => "noisy",
+            Preset::Clean => "clean",
+        }
+    }
+
+    /// Error model of the capture.
+    pub fn error_model(self) -> ErrorModel {
+        let typical = ErrorModel {
+            noise_mm: 0.2,
+            plate_sta_mm: (1.0, 3.0),
+            skin_sta_mm: (0.3, 1.0),
+            gap_fraction: 0.03,
+            drift: (3.0, 2.0),
+            rom: 1.0,
+        };
+        match self {
+            Preset::Typical => typical,
+            Preset::SmallRom => ErrorModel { rom: 0.5, ..typical },
+            Preset::Noisy => ErrorModel {
+                noise_mm: 0.4,
+                plate_sta_mm: (2.0, 6.0),
+                skin_sta_mm: (0.6, 2.0),
+                gap_fraction: 0.06,
+                ..typical
+            },
+            Preset::Clean => ErrorModel {
+                noise_mm: 0.0,
+                plate_sta_mm: (0.0, 0.0),
+                skin_sta_mm: (0.0, 0.0),
+                gap_fraction: 0.0,
+                ..typical
+            },
+        }
+    }
+
+    /// SD of the caliper measurement error, mm.
+    pub fn caliper_sd_mm(self) -> f64 {
+        match self {
+            Preset::Typical | Preset::SmallRom => 0.4,
+            Preset::Noisy => 0.8,
+            Preset::Clean => 0.0,
+        }
+    }
+}
+
+impl FromStr for Preset {
+    type Err = String;
+    fn from_str(s: &str) -> std::result::Result<Self, String> {
+        Preset::ALL
+            .into_iter()
+            .find(|p| p.name() == s)
+            .ok_or_else(|| {
+                format!("unknown preset '{s}' (expected one of: typical, small-rom, noisy, clean)")
+            })
+    }
+}
+
+/// The reference posture of the simulated subject.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Posture {
+    /// The template's own posture.
+    Template,
+    /// Fingers spread or closed by 5-15°, flexed 0-20° at MCP and PIP, thumb 10-20° higher or
+    /// lower: how seated subjects really differ (issue 10).
+    Varied,
+}
+
+impl FromStr for Posture {
+    type Err = String;
+    fn from_str(s: &str) -> std::result::Result<Self, String> {
+        match s {
+            "template" => Ok(Posture::Template),
+            "varied" => Ok(Posture::Varied),
+            _ => Err(format!("unknown posture '{s}' (expected template or varied)")),
+        }
+    }
+}
+
+/// Everything that defines a simulated subject.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SynthOptions {
+    /// The seed: the same options give byte-identical files.
+    pub seed: u64,
+    /// Error model.
+    pub preset: Preset,
+    /// Which hand.
+    #[serde(default = "default_side")]
+    pub hand: Side,
+    /// Reference posture.
+    #[serde(default = "default_posture")]
+    pub posture: Posture,
+    /// Length of every calibration trial, s; `None` draws 40-80 s per trial.
+    #[serde(default)]
+    pub duration_s: Option<f64>,
+    /// Voxel size of the CT-like scan, mm.
+    #[serde(default = "default_voxel")]
+    pub voxel_mm: f64,
+    /// Marker radius plus base: skin surface to marker centre, mm.
+    #[serde(default = "default_offset")]
+    pub marker_offset_mm: f64,
+}
+
+fn default_side() -> Side {
+    Side::Right
+}
+fn default_posture() -> Posture {
+    Posture::Template
+}
+fn default_voxel() -> f64 {
+    0.5
+}
+fn default_offset() -> f64 {
+    4.0
+}
+
+impl SynthOptions {
+    /// Options with defaults for everything but seed and preset.
+    pub fn new(seed: u64, preset: Preset) -> Self {
+        SynthOptions {
+            seed,
+            preset,
+            hand: Side::Right,
+            posture: Posture::Template,
+            duration_s: None,
+            voxel_mm: default_voxel(),
+            marker_offset_mm: default_offset(),
+        }
+    }
+}
+
+/// Capture frame rate, Hz (the seed paper's).
+pub const FRAME_RATE: f64 = 100.0;
+/// Frames of the static reference trial (averaged by the reader).
+pub const REFERENCE_FRAMES: usize = 10;
+
+/// Ground truth of a simulated subject (`truth.json`, spec section 3).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Truth {
+    /// Always "mm".
+    pub units: String,
+    /// Always "reference": the lab frame of the static reference trial.
+    pub frame: String,
+    /// True joint centres and axes in that frame.
+    pub joints: BTreeMap<String, JointRecord>,
+    /// Error-free values of the 22 dimensions, mm.
+    pub dimensions: BTreeMap<String, f64>,
+    /// The reference posture relative to the template's, degrees per joint.
+    pub reference_posture_deg: BTreeMap<String, [f64; 3]>,
+    /// How the subject was made.
+    pub synth: SynthOptions,
+}
+
+/// A simulated subject in memory, before it is written.
+#[derive(Clone, Debug)]
+pub struct SyntheticSubject {
+    /// The subject file's content.
+    pub subject: Subject,
+    /// Trials by `[trials]` key (`reference`, `wrist`, `thumb`, ...), mm, lab frame, f64.
+    pub trials: BTreeMap<String, Trajectories>,
+    /// Ground truth.
+    pub truth: Truth,
+    /// The true skin in the reference posture, lab frame (homologous to the template).
+    pub true_skin: TriMesh,
+    /// The true skeleton in the reference posture, lab frame.
+    pub true_skeleton: Skeleton,
+    /// Marker definitions per trial key (for exactness tests).
+    pub markers: BTreeMap<String, Vec<MarkerDef>>,
+    /// The CT-like reference surface, lab frame.
+    pub reference: TriMesh,
+}
+
+/// The rotation from the template's axes (dorsal +X, fingers -Y) to a lab's (hand palm-down on
+/// a seat: dorsal +Z, fingers +X).
+fn template_to_lab_rotation() -> Rotation3<f64> {
+    Rotation3::from_matrix_unchecked(Matrix3::new(
+        0.0, -1.0, 0.0, //
+        0.0, 0.0, -1.0, //
+        1.0, 0.0, 0.0,
+    ))
+}
+
+/// Draw the subject's reference posture relative to the template's (degrees).
+fn draw_posture(rng: &mut Rng, posture: Posture) -> Pose {
+    let mut pose = Pose::zero();
+    if posture == Posture::Template {
+        return pose;
+    }
+    let sign = |rng: &mut Rng| if rng.uniform() < 0.5 { -1.0 } else { 1.0 };
+    for f in &Finger::ALL[1..] {
+        let [mcp, pip, dip] = f.joints();
+        let abd = sign(rng) * rng.range(5.0, 15.0);
+        pose = pose
+            .with_deg(mcp, [rng.range(0.0, 20.0), abd, 0.0])
+            .with_deg(pip, [rng.range(0.0, 20.0), 0.0, 0.0])
+            .with_deg(dip, [rng.range(0.0, 10.0), 0.0, 0.0]);
+    }
+    pose = pose.with_deg(
+        Joint::TCmc,
+        [
+            sign(rng) * rng.range(10.0, 20.0),
+            sign(rng) * rng.range(10.0, 20.0),
+            0.0,
+        ],
+    );
+    pose
+}
+
+/// Simulate a subject.
+pub fn simulate(opts: &SynthOptions) -> Result<SyntheticSubject> {
+    if !(0.05..=2.0).contains(&opts.voxel_mm) {
+        return Err(Error::invalid(format!(
+            "voxel size {} mm is outside 0.05-2 mm",
+            opts.voxel_mm
+        )));
+    }
+    if let Some(d) = opts.duration_s {
+        if !(2.0..=600.0).contains(&d) {
+            return Err(Error::invalid(format!("trial duration {d} s is outside 2-600 s")));
+        }
+    }
+    let root = Rng::new(opts.seed);
+    let template: TemplateHand = load_template(opts.hand)?;
+    let err = opts.preset.error_model();
+
+    // 1. The true hand in the template's posture: shape, then the surface field.
+    let shape = ShapeParams::sample(&mut root.fork("shape"), 1.0);
+    let shaped = shape_hand(&template.mesh, &template.weights, &template.skeleton, &shape);
+    let mut skin = shaped.mesh;
+    let mut field_rng = root.fork("field");
+    let field = surface_field::FieldParams {
+        amplitude_mm: field_rng.range(0.5, 2.0),
+        ..Default::default()
+    };
+    surface_field::displace_along_normals(&mut skin, &field, &mut field_rng);
+
+    // 2. The reference posture, by the template's skin weights on the subject's skeleton.
+    let posture = draw_posture(&mut root.fork("posture"), opts.posture);
+    let tf = link_transforms(&shaped.skeleton, &posture);
+    for (p, w) in skin.vertices.iter_mut().zip(&template.weights) {
+        let mut acc = Vec3::zeros();
+        for &(l, wl) in w {
+            acc += (tf[l] * *p).coords * wl;
+        }
+        *p = Point::from(acc);
+    }
+    let sk_ref = posed_skeleton(&shaped.skeleton, &tf);
+
+    // 3. Into the lab frame.
+    let mut lab_rng = root.fork("lab");
+    let yaw = UnitQuaternion::from_axis_angle(&Vec3::z_axis(), lab_rng.range(-10f64, 10.0).to_radians());
+    let rot = yaw * UnitQuaternion::from_rotation_matrix(&template_to_lab_rotation());
+    let centre = sk_ref.centre(Joint::Wrist).coords;
+    let offset = Vec3::new(250.0, 150.0, 100.0) + lab_rng.gauss3(20.0);
+    let to_lab = Isometry3::from_parts(Translation3::from(offset - rot * centre), rot);
+    let true_skin = skin.transformed(&to_lab);
+    let lab_tf = vec![to_lab; Link::ALL.len()];
+    let true_skeleton = posed_skeleton(&sk_ref, &lab_tf);
+
+    // 4. Truth: joints, error-free dimensions by the template spec's vertex pairs.
+    let mut dimensions = BTreeMap::new();
+    let mut measured = BTreeMap::new();
+    let mut cal_rng = root.fork("caliper");
+    for d in Dimension::all() {
+        let [a, b] = template.spec.dimension(d).expect("spec checked on load");
+        let v = (true_skin.vertices[a] - true_skin.vertices[b]).norm();
+        dimensions.insert(d.name(), v);
+        measured.insert(d, v + cal_rng.normal() * opts.preset.caliper_sd_mm());
+    }
+    let truth = Truth {
+        units: "mm".into(),
+        frame: "reference".into(),
+        joints: joint_records(&true_skeleton),
+        dimensions,
+        reference_posture_deg: Joint::ALL
+            .iter()
+            .map(|&j| {
+                (
+                    j.name().to_string(),
+                    posture.angles[j.index()].map(|a| a.to_degrees()),
+                )
+            })
+            .collect(),
+        synth: opts.clone(),
+    };
+
+    // 5. Markers, in the reference posture (lab frame): landmarks on the skin at the marker
+    // offset along the normal; plates on the links of each finger; forearm markers.
+    let normals = true_skin.vertex_normals();
+    let landmark_at = |name: &str| -> Point {
+        let v = template.spec.landmark(name).expect("spec checked on load");
+        true_skin.vertices[v] + normals[v] * opts.marker_offset_mm
+    };
+    let mut sta_rng = root.fork("sta");
+    let palm_defs: Vec<MarkerDef> = palm_markers()
+        .iter()
+        .map(|&name| MarkerDef {
+            name: name.to_string(),
+            link: Link::Palm,
+            position: landmark_at(name),
+            sta: vec![],
+        })
+        .collect();
+    let wrist = true_skeleton.joint(Joint::Wrist);
+    let arm_defs: Vec<MarkerDef> = [(-45.0, 0.0), (-80.0, 0.0), (-60.0, 1.0)]
+        .iter()
+        .enumerate()
+        .map(|(k, &(along, side))| {
+            let radial = wrist.x() * if opts.hand == Side::Right { 1.0 } else { -1.0 };
+            let position = wrist.centre
+                + wrist.z() * along
+                + wrist.y() * (22.0 + opts.marker_offset_mm)
+                + radial * (18.0 * side);
+            let dir = sta_rng.unit_vector() * sta_rng.range(err.skin_sta_mm.0, err.skin_sta_mm.1);
+            MarkerDef {
+                name: format!("ARM_{}", k + 1),
+                link: Link::Arm,
+                position,
+                sta: vec![(dir, Joint::Wrist, 60.0)],
+            }
+        })
+        .collect();
+
+    let durations: Vec<f64> = {
+        let mut r = root.fork("durations");
+        (0..6)
+            .map(|_| opts.duration_s.unwrap_or_else(|| r.range(40.0, 80.0)))
+            .collect()
+    };
+    let mut trials = BTreeMap::new();
+    let mut markers = BTreeMap::new();
+    let trial_list: Vec<(String, Trial)> = std::iter::once(("wrist".to_string(), Trial::Wrist))
+        .chain(Finger::ALL.iter().map(|&f| (f.trial_name().to_string(), Trial::Finger(f))))
+        .collect();
+    // The simulation runs in the lab frame: the skeleton is already there, so `to_lab` is the
+    // identity for the trials.
+    let ident = Isometry3::identity();
+    for ((key, trial), duration) in trial_list.iter().zip(&durations) {
+        let mut trng = root.fork(&format!("trial-{key}"));
+        let mut defs: Vec<MarkerDef> = palm_defs
+            .iter()
+            .map(|d| {
+                let mut d = d.clone();
+                // Skin over the metacarpal heads slides as the MCPs flex, and the dorsal skin of
+                // the wrist as the wrist flexes.
+                let driver = match trial {
+                    Trial::Finger(f) => f.joints()[0],
+                    Trial::Wrist => Joint::Wrist,
+                };
+                let dir = trng.unit_vector() * trng.range(err.skin_sta_mm.0, err.skin_sta_mm.1);
+                d.sta = vec![(dir, driver, 80.0)];
+                d
+            })
+            .collect();
+        match trial {
+            Trial::Wrist => defs.extend(arm_defs.iter().cloned()),
+            Trial::Finger(f) => {
+                for link in f.links() {
+                    defs.extend(plate_markers(&true_skin, &true_skeleton, link, &mut trng, err.plate_sta_mm));
+                }
+            }
+        }
+        let n = (duration * FRAME_RATE).round() as usize;
+        let seat = if opts.preset == Preset::Clean {
+            ident
+        } else {
+            let q = UnitQuaternion::from_scaled_axis(trng.gauss3(1f64.to_radians()));
+            let c = wrist.centre.coords;
+            Isometry3::from_parts(Translation3::from(c - q * c + trng.gauss3(1.5)), q)
+        };
+        let positions = simulate_trial(*trial, &true_skeleton, &defs, n, FRAME_RATE, &err, &seat, &ident, &mut trng);
+        trials.insert(
+            key.clone(),
+            Trajectories {
+                frame_rate: FRAME_RATE,
+                labels: defs.iter().map(|d| d.name.clone()).collect(),
+                positions,
+                source: PathBuf::from(format!("trials/{key}.c3d")),
+            },
+        );
+        markers.insert(key.clone(), defs);
+    }
+
+    // The static reference trial: every landmark, a few noisy frames.
+    let mut ref_rng = root.fork("reference-trial");
+    let names = landmark_names();
+    let positions = names
+        .iter()
+        .map(|n| {
+            let p = landmark_at(n);
+            (0..REFERENCE_FRAMES)
+                .map(|_| Some(p + ref_rng.gauss3(err.noise_mm)))
+                .collect()
+        })
+        .collect();
+    trials.insert(
+        "reference".into(),
+        Trajectories {
+            frame_rate: FRAME_RATE,
+            labels: names.iter().map(|s| s.to_string()).collect(),
+            positions,
+            source: PathBuf::from("trials/reference.c3d"),
+        },
+    );
+
+    // 6. The CT-like reference surface.
+    let reference = voxel_scan::ct_surface(&true_skin, opts.voxel_mm)?;
+
+    let name = format!("SYN{:04}", opts.seed % 10_000);
+    let subject = Subject {
+        dir: PathBuf::new(),
+        name,
+        hand: opts.hand,
+        marker_offset_mm: opts.marker_offset_mm,
+        reference_frame: 0,
+        trials: trials
+            .keys()
+            .map(|k| (k.clone(), PathBuf::from(format!("trials/{k}.c3d"))))
+            .collect(),
+        dimensions: measured,
+        labels: BTreeMap::new(),
+    };
+    Ok(SyntheticSubject {
+        subject,
+        trials,
+        truth,
+        true_skin,
+        true_skeleton,
+        markers,
+        reference,
+    })
+}
+
+/// Write a simulated subject folder at `dir`: `subject.toml`, `trials/*.c3d`, `reference.ply`,
+/// `truth.json` and (an extension of the spec) `truth_skin.ply`, the true skin homologous to the
+/// template. Everything is written into a temporary sibling folder that replaces `dir` only when
+/// complete. A non-empty `dir` is an error unless `force`.
+pub fn write_subject(dir: &Path, s: &SyntheticSubject, force: bool) -> Result<()> {
+    if dir.exists() {
+        let non_empty = std::fs::read_dir(dir)
+            .map_err(|e| Error::io(dir, e))?
+            .next()
+            .is_some();
+        if non_empty && !force {
+            return Err(Error::input(
+                dir,
+                "output folder exists and is not empty; pass --force to replace it",
+            ));
+        }
+    }
+    let parent = dir.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
+    std::fs::create_dir_all(parent).map_err(|e| Error::io(parent, e))?;
+    let name = dir
+        .file_name()
+        .ok_or_else(|| Error::input(dir, "output folder has no name"))?
+        .to_string_lossy()
+        .into_owned();
+    let tmp = parent.join(format!(".{name}.{}.tmp", std::process::id()));
+    let _ = std::fs::remove_dir_all(&tmp);
+    let result = write_into(&tmp, s);
+    if let Err(e) = result {
+        let _ = std::fs::remove_dir_all(&tmp);
+        return Err(e);
+    }
+    if dir.exists() {
+        std::fs::remove_dir_all(dir).map_err(|e| Error::io(dir, e))?;
+    }
+    std::fs::rename(&tmp, dir).map_err(|e| Error::io(dir, e))
+}
+
+fn write_into(tmp: &Path, s: &SyntheticSubject) -> Result<()> {
+    let trials_dir = tmp.join("trials");
+    std::fs::create_dir_all(&trials_dir).map_err(|e| Error::io(&trials_dir, e))?;
+    let mut subject = s.subject.clone();
+    subject.dir = tmp.to_path_buf();
+    subject.save()?;
+    for (key, traj) in &s.trials {
+        write_c3d(&trials_dir.join(format!("{key}.c3d")), traj)?;
+    }
+    crate::io::ply::write_ply(&tmp.join("reference.ply"), &s.reference, crate::io::Units::Millimetres, None)?;
+    crate::io::ply::write_ply(&tmp.join("truth_skin.ply"), &s.true_skin, crate::io::Units::Millimetres, None)?;
+    let json = serde_json::to_string_pretty(&s.truth).expect("truth serialises");
+    crate::io::atomic::write_bytes_atomic(&tmp.join("truth.json"), json.as_bytes())
+}
