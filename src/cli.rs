@@ -4,6 +4,7 @@
 use crate::anatomy::Side;
 use crate::error::{Error, Result};
 use crate::io::{atomic, obj, Units};
+use crate::synth::{self, SynthOptions};
 use crate::template::{self, TemplateHand};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -108,6 +109,52 @@ pub fn template(out: &Path, sides: &[Side], log: &Log) -> Result<TemplateOutputs
         t0.elapsed().as_secs_f64()
     ));
     Ok(TemplateOutputs { files, hands })
+}
+
+/// Options of `ergohand synth` from its command-line words; errors name the option.
+pub fn synth_options(
+    seed: u64,
+    preset: &str,
+    hand: &str,
+    posture: &str,
+    duration: Option<f64>,
+) -> Result<SynthOptions> {
+    let bad = |opt: &str, e: String| Error::invalid(format!("--{opt}: {e}"));
+    let mut o = SynthOptions::new(seed, preset.parse().map_err(|e| bad("preset", e))?);
+    o.hand = match hand {
+        "right" => Side::Right,
+        "left" => Side::Left,
+        other => return Err(bad("hand", format!("'{other}' is not right or left"))),
+    };
+    o.posture = posture.parse().map_err(|e| bad("posture", e))?;
+    o.duration_s = duration;
+    Ok(o)
+}
+
+/// `ergohand synth`: simulate a subject and write its folder.
+pub fn synth(opts: &SynthOptions, out: &Path, force: bool, log: &Log) -> Result<()> {
+    let t0 = Instant::now();
+    let spinner = log.progress(2, "synth");
+    spinner.set_message("simulating");
+    let s = synth::simulate(opts)?;
+    spinner.inc(1);
+    spinner.set_message("writing");
+    synth::write_subject(out, &s, force)?;
+    spinner.finish_and_clear();
+    let frames: usize = s.trials.values().map(|t| t.n_frames()).sum();
+    log.info(format!(
+        "synth: {} ({} hand, preset {}, posture {:?}) -> {}: {} trials, {} frames, reference surface {} faces, {:.1} s",
+        s.subject.name,
+        opts.hand,
+        opts.preset.name(),
+        opts.posture,
+        out.display(),
+        s.trials.len(),
+        frames,
+        s.reference.n_faces(),
+        t0.elapsed().as_secs_f64()
+    ));
+    Ok(())
 }
 
 /// `ergohand demo`: every stage that exists, on the default subject, into `out`.

@@ -37,13 +37,25 @@ enum Command {
     },
     /// Write a simulated subject folder with reference.ply and truth.json.
     Synth {
+        /// Seed: the same seed and options give byte-identical files.
         #[arg(long)]
         seed: u64,
+        /// Output subject folder.
         #[arg(long)]
         out: PathBuf,
+        /// Error model: typical, small-rom, noisy or clean.
         #[arg(long, default_value = "typical")]
         preset: String,
-        /// Overwrite a non-empty output folder.
+        /// Which hand: right or left.
+        #[arg(long, default_value = "right")]
+        hand: String,
+        /// Reference posture: template (the template's own) or varied (issue 10's variation).
+        #[arg(long, default_value = "template")]
+        posture: String,
+        /// Length of every calibration trial in seconds (default: drawn from 40-80 s).
+        #[arg(long)]
+        duration: Option<f64>,
+        /// Replace a non-empty output folder.
         #[arg(long)]
         force: bool,
     },
@@ -93,7 +105,16 @@ fn main() -> ExitCode {
     let result = match args.command {
         Command::Demo { out } => cli::demo(&out, &log),
         Command::Template { out } => cli::template(&out, &[Side::Right, Side::Left], &log).map(|_| ()),
-        Command::Synth { .. } => return not_built("synth", 3),
+        Command::Synth {
+            seed,
+            out,
+            preset,
+            hand,
+            posture,
+            duration,
+            force,
+        } => cli::synth_options(seed, &preset, &hand, &posture, duration)
+            .and_then(|opts| cli::synth(&opts, &out, force, &log)),
         Command::Reconstruct { .. } => return not_built("reconstruct", 4),
         Command::Validate { .. } => return not_built("validate", 9),
         Command::Pose { .. } => return not_built("pose", 7),

@@ -134,7 +134,7 @@ pub fn absolute_orientation(
     let eig = scatter.symmetric_eigenvalues();
     let mut ev = [eig[0], eig[1], eig[2]];
     ev.sort_by(|a, b| b.total_cmp(a));
-    if !(ev[0] > 0.0) || ev[1] <= 1e-12 * ev[0] {
+    if ev[0].is_nan() || ev[0] <= 0.0 || ev[1] <= 1e-12 * ev[0] {
         return Err(Error::invalid(
             "registration points are collinear (or coincide): the rotation is undetermined",
         ));

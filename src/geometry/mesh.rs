@@ -177,7 +177,11 @@ impl TriMesh {
             'search: for dx in -1..=1 {
                 for dy in -1..=1 {
                     for dz in -1..=1 {
-                        if let Some(list) = grid.get(&(kx + dx, ky + dy, kz + dz)) {
+                        if let Some(list) = grid.get(&(
+                            kx.saturating_add(dx),
+                            ky.saturating_add(dy),
+                            kz.saturating_add(dz),
+                        )) {
                             for &j in list {
                                 let d = (kept[j] - p).norm();
                                 if d <= tol {

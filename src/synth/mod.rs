@@ -11,6 +11,7 @@
 pub mod anthropometry;
 pub mod capture;
 pub mod motion;
+pub mod suite;
 pub mod surface_field;
 pub mod voxel_scan;
 
@@ -541,4 +542,154 @@ fn write_into(tmp: &Path, s: &SyntheticSubject) -> Result<()> {
     crate::io::ply::write_ply(&tmp.join("truth_skin.ply"), &s.true_skin, crate::io::Units::Millimetres, None)?;
     let json = serde_json::to_string_pretty(&s.truth).expect("truth serialises");
     crate::io::atomic::write_bytes_atomic(&tmp.join("truth.json"), json.as_bytes())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::geometry::absolute_orientation;
+
+    fn short(seed: u64, preset: Preset) -> SynthOptions {
+        SynthOptions {
+            duration_s: Some(4.0),
+            voxel_mm: 1.0,
+            ..SynthOptions::new(seed, preset)
+        }
+    }
+
+    /// The registration of a parent's markers at frame `f` onto frame 0 (equation 1 of the seed
+    /// paper), from the trial data alone.
+    fn to_reference(t: &Trajectories, parent: &[String], f: usize) -> crate::geometry::Registration {
+        let at = |k: usize| -> Vec<Point> {
+            parent.iter().map(|n| t.get(n, k).expect("clean data has no gaps")).collect()
+        };
+        absolute_orientation(&at(f), &at(0), None, false).unwrap()
+    }
+
+    #[test]
+    fn clean_markers_keep_their_distance_to_the_true_centres() {
+        let s = simulate(&short(11, Preset::Clean)).unwrap();
+        let t = &s.trials["index"];
+        let centre = |j: Joint| {
+            let c = s.truth.joints[j.name()].centre;
+            Point::new(c[0], c[1], c[2])
+        };
+        let palm: Vec<String> = palm_markers().iter().map(|s| s.to_string()).collect();
+        let plates = |l: Link| l.plate_markers().to_vec();
+        for (joint, parent, child) in [
+            (Joint::IMcp, palm.clone(), plates(Link::IProx)),
+            (Joint::IPip, plates(Link::IProx), plates(Link::IMid)),
+            (Joint::IDip, plates(Link::IMid), plates(Link::IDist)),
+        ] {
+            let c = centre(joint);
+            let axis = s.truth.joints[joint.name()].axis.map(|a| Vec3::new(a[0], a[1], a[2]));
+            for m in &child {
+                let p0 = t.get(m, 0).unwrap();
+                let (r0, h0) = ((p0 - c).norm(), axis.map(|a| (p0 - c).dot(&a)));
+                let mut max_dev: f64 = 0.0;
+                for f in (0..t.n_frames()).step_by(7) {
+                    let reg = to_reference(t, &parent, f);
+                    let p = reg.apply(&t.get(m, f).unwrap());
+                    max_dev = max_dev.max(((p - c).norm() - r0).abs());
+                    if let (Some(a), Some(h0)) = (axis, h0) {
+                        max_dev = max_dev.max(((p - c).dot(&a) - h0).abs());
+                    }
+                }
+                assert!(max_dev < 1e-6, "{joint} {m}: {max_dev:e} mm");
+            }
+        }
+    }
+
+    #[test]
+    fn the_motion_covers_the_ranges_relative_to_the_parent() {
+        // The index PIP must really move in the clean index trial: the MID plate sweeps an arc of
+        // at least 90 degrees about the true axis, as seen from the PROX plate.
+        let s = simulate(&short(12, Preset::Clean)).unwrap();
+        let t = &s.trials["index"];
+        let prox = Link::IProx.plate_markers().to_vec();
+        let c = s.truth.joints["I_PIP"].centre;
+        let c = Point::new(c[0], c[1], c[2]);
+        let m = "I_MID_1";
+        let v0 = t.get(m, 0).unwrap() - c;
+        let mut max_angle: f64 = 0.0;
+        for f in 0..t.n_frames() {
+            let reg = to_reference(t, &prox, f);
+            let v = reg.apply(&t.get(m, f).unwrap()) - c;
+            max_angle = max_angle.max(v.angle(&v0).to_degrees());
+        }
+        // A 4 s trial reaches only part of the distal phase; half of the 100° PIP range at least.
+        assert!(max_angle > 30.0, "{max_angle}");
+    }
+
+    #[test]
+    fn reference_surface_is_closed_and_keeps_the_volume() {
+        let s = simulate(&short(13, Preset::Typical)).unwrap();
+        s.reference.check_closed_manifold().unwrap();
+        let (vr, vt) = (s.reference.signed_volume(), s.true_skin.signed_volume());
+        assert!((vr / vt - 1.0).abs() < 0.01, "{vr} vs {vt}");
+        // Nothing in common with the template's topology.
+        assert_ne!(s.reference.n_vertices(), s.true_skin.n_vertices());
+        // Every landmark lies at the marker offset off the true skin.
+        let t = &s.trials["reference"];
+        assert_eq!(t.labels.len(), landmark_names().len());
+    }
+
+    #[test]
+    fn same_seed_gives_byte_identical_files() {
+        let dir = tempfile::tempdir().unwrap();
+        let (a, b) = (dir.path().join("a"), dir.path().join("b"));
+        let opts = short(21, Preset::Typical);
+        write_subject(&a, &simulate(&opts).unwrap(), false).unwrap();
+        write_subject(&b, &simulate(&opts).unwrap(), false).unwrap();
+        let mut files: Vec<PathBuf> = Vec::new();
+        for e in walk(&a) {
+            files.push(e.strip_prefix(&a).unwrap().to_path_buf());
+        }
+        assert!(files.len() >= 10, "{files:?}");
+        for f in &files {
+            let x = std::fs::read(a.join(f)).unwrap();
+            let y = std::fs::read(b.join(f)).unwrap();
+            assert!(x == y, "{} differs", f.display());
+        }
+        // A different seed differs.
+        let c = dir.path().join("c");
+        write_subject(&c, &simulate(&short(22, Preset::Typical)).unwrap(), false).unwrap();
+        assert_ne!(
+            std::fs::read(a.join("truth.json")).unwrap(),
+            std::fs::read(c.join("truth.json")).unwrap()
+        );
+        // The folder reads back as a subject with every trial, through the C3D reader.
+        let subj = Subject::load(&a).unwrap();
+        for kind in ["reference", "wrist", "thumb", "index", "middle", "ring", "little"] {
+            assert!(subj.trials.contains_key(kind), "{kind}");
+        }
+        // A non-empty folder is refused without force, and replaced with it.
+        let e = write_subject(&a, &simulate(&opts).unwrap(), false).unwrap_err();
+        assert!(e.to_string().contains("--force"), "{e}");
+        write_subject(&a, &simulate(&opts).unwrap(), true).unwrap();
+    }
+
+    fn walk(dir: &Path) -> Vec<PathBuf> {
+        let mut out = Vec::new();
+        for e in std::fs::read_dir(dir).unwrap() {
+            let p = e.unwrap().path();
+            if p.is_dir() {
+                out.extend(walk(&p));
+            } else {
+                out.push(p);
+            }
+        }
+        out.sort();
+        out
+    }
+
+    #[test]
+    fn presets_and_postures_parse() {
+        for p in Preset::ALL {
+            assert_eq!(p.name().parse::<Preset>().unwrap(), p);
+        }
+        let e = "typcal".parse::<Preset>().unwrap_err();
+        assert!(e.contains("typcal") && e.contains("small-rom"));
+        assert!("varied".parse::<Posture>().is_ok());
+    }
 }
