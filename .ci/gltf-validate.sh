@@ -11,6 +11,6 @@ fi
 tool=${GLTF_VALIDATOR_DIR:-target/gltf-validator}
 if [ ! -d "$tool/node_modules/gltf-validator" ]; then
   mkdir -p "$tool"
-  (cd "$tool" && npm install --silent --no-audit --no-fund gltf-validator@2 >/dev/null)
+  (cd "$tool" && npm init -y >/dev/null && npm install --silent --no-audit --no-fund gltf-validator@2.0.0-dev.3.10 >/dev/null)
 fi
-NODE_PATH="$tool/node_modules" node validation/tools/gltf_validate.mjs "${files[@]}"
+GLTF_VALIDATOR_DIR="$tool" node validation/tools/gltf_validate.mjs "${files[@]}"

@@ -16,7 +16,10 @@ fn horn(c: &mut Criterion) {
         Point::new(58.0, 50.0, 8.0),
     ];
     let q = nalgebra::UnitQuaternion::from_euler_angles(0.2, -0.4, 1.1);
-    let dst: Vec<Point> = src.iter().map(|p| q * p + nalgebra::Vector3::new(5.0, 6.0, 7.0)).collect();
+    let dst: Vec<Point> = src
+        .iter()
+        .map(|p| q * p + nalgebra::Vector3::new(5.0, 6.0, 7.0))
+        .collect();
     c.bench_function("horn_4_points", |b| {
         b.iter(|| absolute_orientation(black_box(&src), black_box(&dst), None, false).unwrap())
     });
@@ -25,10 +28,14 @@ fn horn(c: &mut Criterion) {
 fn meshes(c: &mut Criterion) {
     let high = load_template(Side::Right).unwrap().mesh;
     c.bench_function("weld_37k_faces", |b| b.iter(|| black_box(&high).weld(0.01)));
-    c.bench_function("topology_37k_faces", |b| b.iter(|| black_box(&high).topology()));
+    c.bench_function("topology_37k_faces", |b| {
+        b.iter(|| black_box(&high).topology())
+    });
     let mut g = c.benchmark_group("template");
     g.sample_size(10);
-    g.bench_function("load_template_right", |b| b.iter(|| load_template(Side::Right).unwrap()));
+    g.bench_function("load_template_right", |b| {
+        b.iter(|| load_template(Side::Right).unwrap())
+    });
     g.finish();
 }
 

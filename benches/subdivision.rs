@@ -1,8 +1,8 @@
 //! Loop subdivision of the generic hand (2314 faces): one and two levels, with composed stencils.
 
 use criterion::{criterion_group, criterion_main, Criterion};
-use ergohand::geometry::loop_subdivision::{loop_subdivide, loop_subdivide_n};
 use ergohand::anatomy::Side;
+use ergohand::geometry::loop_subdivision::{loop_subdivide, loop_subdivide_n};
 use ergohand::template::load_base_hand;
 use std::hint::black_box;
 

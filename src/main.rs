@@ -104,7 +104,9 @@ fn main() -> ExitCode {
     let log = cli::Log::new(args.quiet);
     let result = match args.command {
         Command::Demo { out } => cli::demo(&out, &log),
-        Command::Template { out } => cli::template(&out, &[Side::Right, Side::Left], &log).map(|_| ()),
+        Command::Template { out } => {
+            cli::template(&out, &[Side::Right, Side::Left], &log).map(|_| ())
+        }
         Command::Synth {
             seed,
             out,

@@ -115,10 +115,14 @@ pub fn shape_hand(
         let parent = j.parent_link().index();
         let f = sk.joint(j).frame.matrix();
         let s = p.link_scale[l];
-        let mut m = f * Matrix3::from_diagonal(&Vec3::new(s[0], s[1], s[2])) * f.transpose() * p.size;
+        let mut m =
+            f * Matrix3::from_diagonal(&Vec3::new(s[0], s[1], s[2])) * f.transpose() * p.size;
         if j == Joint::TCmc {
             let fr = UnitQuaternion::from_rotation_matrix(&sk.joint(j).frame);
-            m = (fr * thumb_rot * fr.inverse()).to_rotation_matrix().matrix() * m;
+            m = (fr * thumb_rot * fr.inverse())
+                .to_rotation_matrix()
+                .matrix()
+                * m;
         }
         let c = sk.centre(j);
         lin[l] = m;
@@ -160,12 +164,17 @@ pub fn shape_hand(
         }
         let jf = *skeleton.joint(j);
         let [ty, tz] = p.axis_tilt_deg[j.index()];
-        let tilt = Rotation3::from_axis_angle(&nalgebra::Unit::new_normalize(jf.y()), ty.to_radians())
-            * Rotation3::from_axis_angle(&nalgebra::Unit::new_normalize(jf.z()), tz.to_radians());
+        let tilt =
+            Rotation3::from_axis_angle(&nalgebra::Unit::new_normalize(jf.y()), ty.to_radians())
+                * Rotation3::from_axis_angle(
+                    &nalgebra::Unit::new_normalize(jf.z()),
+                    tz.to_radians(),
+                );
         let axis = tilt * jf.x();
         skeleton.joints[j.index()] = JointFrame {
             centre: jf.centre,
-            frame: frame_from_axis(&axis, &jf.z()).expect("a small tilt keeps the axis off the link"),
+            frame: frame_from_axis(&axis, &jf.z())
+                .expect("a small tilt keeps the axis off the link"),
         };
     }
     ShapedHand {
@@ -256,7 +265,8 @@ mod tests {
     fn sampled_variation_has_the_intended_spread() {
         let mut rng = Rng::new(5);
         let n = 2000;
-        let samples: Vec<ShapeParams> = (0..n).map(|_| ShapeParams::sample(&mut rng, 1.0)).collect();
+        let samples: Vec<ShapeParams> =
+            (0..n).map(|_| ShapeParams::sample(&mut rng, 1.0)).collect();
         // Coefficient of variation of a finger segment's length, size included: about
         // sqrt(0.05² + 0.03² + 0.035²) = 6.8 %.
         let lens: Vec<f64> = samples

@@ -71,7 +71,10 @@ pub fn plate_markers(
     // Drivers: the joint under the plate and the next one distal (the skin over a phalanx moves
     // with both ends' flexion).
     let mut drivers = vec![(j, 90.0)];
-    if let Some(next) = Joint::ALL.iter().find(|c| c.parent() == Some(j) && c.dof() == 1) {
+    if let Some(next) = Joint::ALL
+        .iter()
+        .find(|c| c.parent() == Some(j) && c.dof() == 1)
+    {
         drivers.push((*next, 90.0));
     }
     let sta: Vec<(Vec3, Joint, f64)> = drivers
@@ -226,6 +229,9 @@ mod tests {
         let mask = gap_mask(&mut rng, 6000, 100.0, 0.03);
         let hidden = mask.iter().filter(|v| !**v).count();
         assert!((180..240).contains(&hidden), "{hidden}");
-        assert!(mask[..101].iter().all(|v| *v), "the seated second stays visible");
+        assert!(
+            mask[..101].iter().all(|v| *v),
+            "the seated second stays visible"
+        );
     }
 }

@@ -51,7 +51,12 @@ pub enum Preset {
 
 impl Preset {
     /// All presets.
-    pub const ALL: [Preset; 4] = [Preset::Typical, Preset::SmallRom, Preset::Noisy, Preset::Clean];
+    pub const ALL: [Preset; 4] = [
+        Preset::Typical,
+        Preset::SmallRom,
+        Preset::Noisy,
+        Preset::Clean,
+    ];
 
     /// The preset's name on the command line.
     pub fn name(self) -> &'static str {
@@ -75,7 +80,10 @@ impl Preset {
         };
         match self {
             Preset::Typical => typical,
-            Preset::SmallRom => ErrorModel { rom: 0.5, ..typical },
+            Preset::SmallRom => ErrorModel {
+                rom: 0.5,
+                ..typical
+            },
             Preset::Noisy => ErrorModel {
                 noise_mm: 0.4,
                 plate_sta_mm: (2.0, 6.0),
@@ -132,7 +140,9 @@ impl FromStr for Posture {
         match s {
             "template" => Ok(Posture::Template),
             "varied" => Ok(Posture::Varied),
-            _ => Err(format!("unknown posture '{s}' (expected template or varied)")),
+            _ => Err(format!(
+                "unknown posture '{s}' (expected template or varied)"
+            )),
         }
     }
 }
@@ -231,14 +241,12 @@ pub struct SyntheticSubject {
     pub reference: TriMesh,
 }
 
-/// The rotation from the template's axes (dorsal +X, fingers -Y) to a lab's (hand palm-down on
-/// a seat: dorsal +Z, fingers +X).
-fn template_to_lab_rotation() -> Rotation3<f64> {
-    Rotation3::from_matrix_unchecked(Matrix3::new(
-        0.0, -1.0, 0.0, //
-        0.0, 0.0, -1.0, //
-        1.0, 0.0, 0.0,
-    ))
+/// The rotation from the template's frame to a lab's with the hand palm-down on a seat: the
+/// back of the hand (the wrist frame's y) up along +Z, the palm's long axis (its z) along +X.
+fn template_to_lab_rotation(sk: &Skeleton) -> Rotation3<f64> {
+    let w = sk.joint(Joint::Wrist);
+    let (l, d) = (w.z(), w.y());
+    Rotation3::from_matrix_unchecked(Matrix3::from_columns(&[l, d.cross(&l), d]).transpose())
 }
 
 /// Draw the subject's reference posture relative to the template's (degrees).
@@ -277,7 +285,9 @@ pub fn simulate(opts: &SynthOptions) -> Result<SyntheticSubject> {
     }
     if let Some(d) = opts.duration_s {
         if !(2.0..=600.0).contains(&d) {
-            return Err(Error::invalid(format!("trial duration {d} s is outside 2-600 s")));
+            return Err(Error::invalid(format!(
+                "trial duration {d} s is outside 2-600 s"
+            )));
         }
     }
     let root = Rng::new(opts.seed);
@@ -286,7 +296,12 @@ pub fn simulate(opts: &SynthOptions) -> Result<SyntheticSubject> {
 
     // 1. The true hand in the template's posture: shape, then the surface field.
     let shape = ShapeParams::sample(&mut root.fork("shape"), 1.0);
-    let shaped = shape_hand(&template.mesh, &template.weights, &template.skeleton, &shape);
+    let shaped = shape_hand(
+        &template.mesh,
+        &template.weights,
+        &template.skeleton,
+        &shape,
+    );
     let mut skin = shaped.mesh;
     let mut field_rng = root.fork("field");
     let field = surface_field::FieldParams {
@@ -309,8 +324,9 @@ pub fn simulate(opts: &SynthOptions) -> Result<SyntheticSubject> {
 
     // 3. Into the lab frame.
     let mut lab_rng = root.fork("lab");
-    let yaw = UnitQuaternion::from_axis_angle(&Vec3::z_axis(), lab_rng.range(-10f64, 10.0).to_radians());
-    let rot = yaw * UnitQuaternion::from_rotation_matrix(&template_to_lab_rotation());
+    let yaw =
+        UnitQuaternion::from_axis_angle(&Vec3::z_axis(), lab_rng.range(-10f64, 10.0).to_radians());
+    let rot = yaw * UnitQuaternion::from_rotation_matrix(&template_to_lab_rotation(&sk_ref));
     let centre = sk_ref.centre(Joint::Wrist).coords;
     let offset = Vec3::new(250.0, 150.0, 100.0) + lab_rng.gauss3(20.0);
     let to_lab = Isometry3::from_parts(Translation3::from(offset - rot * centre), rot);
@@ -326,7 +342,9 @@ pub fn simulate(opts: &SynthOptions) -> Result<SyntheticSubject> {
         let [a, b] = template.spec.dimension(d).expect("spec checked on load");
         let v = (true_skin.vertices[a] - true_skin.vertices[b]).norm();
         dimensions.insert(d.name(), v);
-        measured.insert(d, v + cal_rng.normal() * opts.preset.caliper_sd_mm());
+        // Digital calipers read to 0.01 mm.
+        let m = v + cal_rng.normal() * opts.preset.caliper_sd_mm();
+        measured.insert(d, (m * 100.0).round() / 100.0);
     }
     let truth = Truth {
         units: "mm".into(),
@@ -391,7 +409,11 @@ pub fn simulate(opts: &SynthOptions) -> Result<SyntheticSubject> {
     let mut trials = BTreeMap::new();
     let mut markers = BTreeMap::new();
     let trial_list: Vec<(String, Trial)> = std::iter::once(("wrist".to_string(), Trial::Wrist))
-        .chain(Finger::ALL.iter().map(|&f| (f.trial_name().to_string(), Trial::Finger(f))))
+        .chain(
+            Finger::ALL
+                .iter()
+                .map(|&f| (f.trial_name().to_string(), Trial::Finger(f))),
+        )
         .collect();
     // The simulation runs in the lab frame: the skeleton is already there, so `to_lab` is the
     // identity for the trials.
@@ -417,7 +439,13 @@ pub fn simulate(opts: &SynthOptions) -> Result<SyntheticSubject> {
             Trial::Wrist => defs.extend(arm_defs.iter().cloned()),
             Trial::Finger(f) => {
                 for link in f.links() {
-                    defs.extend(plate_markers(&true_skin, &true_skeleton, link, &mut trng, err.plate_sta_mm));
+                    defs.extend(plate_markers(
+                        &true_skin,
+                        &true_skeleton,
+                        link,
+                        &mut trng,
+                        err.plate_sta_mm,
+                    ));
                 }
             }
         }
@@ -429,7 +457,17 @@ pub fn simulate(opts: &SynthOptions) -> Result<SyntheticSubject> {
             let c = wrist.centre.coords;
             Isometry3::from_parts(Translation3::from(c - q * c + trng.gauss3(1.5)), q)
         };
-        let positions = simulate_trial(*trial, &true_skeleton, &defs, n, FRAME_RATE, &err, &seat, &ident, &mut trng);
+        let positions = simulate_trial(
+            *trial,
+            &true_skeleton,
+            &defs,
+            n,
+            FRAME_RATE,
+            &err,
+            &seat,
+            &ident,
+            &mut trng,
+        );
         trials.insert(
             key.clone(),
             Trajectories {
@@ -509,7 +547,10 @@ pub fn write_subject(dir: &Path, s: &SyntheticSubject, force: bool) -> Result<()
             ));
         }
     }
-    let parent = dir.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
+    let parent = dir
+        .parent()
+        .filter(|p| !p.as_os_str().is_empty())
+        .unwrap_or(Path::new("."));
     std::fs::create_dir_all(parent).map_err(|e| Error::io(parent, e))?;
     let name = dir
         .file_name()
@@ -538,8 +579,18 @@ fn write_into(tmp: &Path, s: &SyntheticSubject) -> Result<()> {
     for (key, traj) in &s.trials {
         write_c3d(&trials_dir.join(format!("{key}.c3d")), traj)?;
     }
-    crate::io::ply::write_ply(&tmp.join("reference.ply"), &s.reference, crate::io::Units::Millimetres, None)?;
-    crate::io::ply::write_ply(&tmp.join("truth_skin.ply"), &s.true_skin, crate::io::Units::Millimetres, None)?;
+    crate::io::ply::write_ply(
+        &tmp.join("reference.ply"),
+        &s.reference,
+        crate::io::Units::Millimetres,
+        None,
+    )?;
+    crate::io::ply::write_ply(
+        &tmp.join("truth_skin.ply"),
+        &s.true_skin,
+        crate::io::Units::Millimetres,
+        None,
+    )?;
     let json = serde_json::to_string_pretty(&s.truth).expect("truth serialises");
     crate::io::atomic::write_bytes_atomic(&tmp.join("truth.json"), json.as_bytes())
 }
@@ -559,9 +610,16 @@ mod tests {
 
     /// The registration of a parent's markers at frame `f` onto frame 0 (equation 1 of the seed
     /// paper), from the trial data alone.
-    fn to_reference(t: &Trajectories, parent: &[String], f: usize) -> crate::geometry::Registration {
+    fn to_reference(
+        t: &Trajectories,
+        parent: &[String],
+        f: usize,
+    ) -> crate::geometry::Registration {
         let at = |k: usize| -> Vec<Point> {
-            parent.iter().map(|n| t.get(n, k).expect("clean data has no gaps")).collect()
+            parent
+                .iter()
+                .map(|n| t.get(n, k).expect("clean data has no gaps"))
+                .collect()
         };
         absolute_orientation(&at(f), &at(0), None, false).unwrap()
     }
@@ -582,7 +640,9 @@ mod tests {
             (Joint::IDip, plates(Link::IMid), plates(Link::IDist)),
         ] {
             let c = centre(joint);
-            let axis = s.truth.joints[joint.name()].axis.map(|a| Vec3::new(a[0], a[1], a[2]));
+            let axis = s.truth.joints[joint.name()]
+                .axis
+                .map(|a| Vec3::new(a[0], a[1], a[2]));
             for m in &child {
                 let p0 = t.get(m, 0).unwrap();
                 let (r0, h0) = ((p0 - c).norm(), axis.map(|a| (p0 - c).dot(&a)));
@@ -660,7 +720,15 @@ mod tests {
         );
         // The folder reads back as a subject with every trial, through the C3D reader.
         let subj = Subject::load(&a).unwrap();
-        for kind in ["reference", "wrist", "thumb", "index", "middle", "ring", "little"] {
+        for kind in [
+            "reference",
+            "wrist",
+            "thumb",
+            "index",
+            "middle",
+            "ring",
+            "little",
+        ] {
             assert!(subj.trials.contains_key(kind), "{kind}");
         }
         // A non-empty folder is refused without force, and replaced with it.

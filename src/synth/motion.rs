@@ -60,7 +60,11 @@ pub fn trial_angles(trial: Trial, t: f64, duration: f64, rom: f64) -> Vec<(Joint
             // MCP flexion 0-80°, abduction ±20°, period 4 s. Thumb CMC: flexion 0-40°, palmar
             // abduction 0-50°.
             let w = tau / 4.0;
-            let back = if moving < half { 1.0 } else { (1.0 - (dist / RAMP_S)).max(0.0) };
+            let back = if moving < half {
+                1.0
+            } else {
+                (1.0 - (dist / RAMP_S)).max(0.0)
+            };
             let e = ramp(prox) * rom * back;
             let phase = w * prox;
             let proximal = if f == Finger::Thumb {
@@ -77,7 +81,11 @@ pub fn trial_angles(trial: Trial, t: f64, duration: f64, rom: f64) -> Vec<(Joint
             let wd = tau / 3.0;
             let ed = ramp(dist) * rom;
             let s = 0.5 * (1.0 - (wd * dist).cos());
-            let (a1, a2) = if f == Finger::Thumb { (50.0, 70.0) } else { (100.0, 70.0) };
+            let (a1, a2) = if f == Finger::Thumb {
+                (50.0, 70.0)
+            } else {
+                (100.0, 70.0)
+            };
             vec![
                 (j0, proximal),
                 (j1, [ed * a1 * s, 0.0, 0.0]),
@@ -93,7 +101,11 @@ mod tests {
 
     #[test]
     fn trials_start_at_rest_and_reach_their_ranges() {
-        for trial in [Trial::Wrist, Trial::Finger(Finger::Index), Trial::Finger(Finger::Thumb)] {
+        for trial in [
+            Trial::Wrist,
+            Trial::Finger(Finger::Index),
+            Trial::Finger(Finger::Thumb),
+        ] {
             let at = |t: f64| trial_angles(trial, t, 60.0, 1.0);
             for (_, a) in at(0.0).into_iter().chain(at(0.5)) {
                 assert!(a.iter().all(|x| x.abs() < 1e-12), "{trial:?}");

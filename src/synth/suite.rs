@@ -41,14 +41,22 @@ pub fn parse_suite(text: &str, path: &Path) -> Result<Vec<(String, SynthOptions)
     let file: SuiteFile = toml::from_str(text).map_err(|e| {
         let line = e
             .span()
-            .map(|s| format!(" (line {})", text[..s.start.min(text.len())].matches('\n').count() + 1))
+            .map(|s| {
+                format!(
+                    " (line {})",
+                    text[..s.start.min(text.len())].matches('\n').count() + 1
+                )
+            })
             .unwrap_or_default();
         Error::input(path, e.message().replace('\n', " ") + &line)
     })?;
     let mut out: Vec<(String, SynthOptions)> = Vec::new();
     for e in file.subject {
         if out.iter().any(|(n, _)| *n == e.name) {
-            return Err(Error::input(path, format!("subject name '{}' is used twice", e.name)));
+            return Err(Error::input(
+                path,
+                format!("subject name '{}' is used twice", e.name),
+            ));
         }
         let mut o = SynthOptions::new(e.seed, e.preset);
         o.hand = e.hand.unwrap_or(o.hand);
@@ -82,13 +90,19 @@ mod tests {
     #[test]
     fn bad_suite_entries_are_named() {
         let p = Path::new("suite.toml");
-        let e = parse_suite("[[subject]]\nname = \"a\"\nseed = 1\npreset = \"typcal\"\n", p)
-            .unwrap_err()
-            .to_string();
+        let e = parse_suite(
+            "[[subject]]\nname = \"a\"\nseed = 1\npreset = \"typcal\"\n",
+            p,
+        )
+        .unwrap_err()
+        .to_string();
         assert!(e.contains("suite.toml") && e.contains("typcal"), "{e}");
-        let e = parse_suite("[[subject]]\nname = \"a\"\nseed = 1\npreset = \"clean\"\nseeed = 2\n", p)
-            .unwrap_err()
-            .to_string();
+        let e = parse_suite(
+            "[[subject]]\nname = \"a\"\nseed = 1\npreset = \"clean\"\nseeed = 2\n",
+            p,
+        )
+        .unwrap_err()
+        .to_string();
         assert!(e.contains("seeed"), "{e}");
     }
 }

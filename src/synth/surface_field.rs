@@ -40,7 +40,11 @@ pub fn displace_along_normals(mesh: &mut TriMesh, params: &FieldParams, rng: &mu
             let u = rng.unit_vector();
             let lambda = rng.range(params.min_wavelength_mm, params.max_wavelength_mm);
             let phase = rng.range(0.0, std::f64::consts::TAU);
-            (u * (std::f64::consts::TAU / lambda), phase, rng.range(0.5, 1.0))
+            (
+                u * (std::f64::consts::TAU / lambda),
+                phase,
+                rng.range(0.5, 1.0),
+            )
         })
         .collect();
     let field = |p: &Point| -> f64 {
@@ -51,7 +55,11 @@ pub fn displace_along_normals(mesh: &mut TriMesh, params: &FieldParams, rng: &mu
     };
     let raw: Vec<f64> = mesh.vertices.iter().map(field).collect();
     let peak = raw.iter().fold(0.0f64, |m, d| m.max(d.abs()));
-    let scale = if peak > 0.0 { params.amplitude_mm / peak } else { 0.0 };
+    let scale = if peak > 0.0 {
+        params.amplitude_mm / peak
+    } else {
+        0.0
+    };
     let normals = mesh.vertex_normals();
     let d: Vec<f64> = raw.iter().map(|x| x * scale).collect();
     for ((p, n), di) in mesh.vertices.iter_mut().zip(&normals).zip(&d) {

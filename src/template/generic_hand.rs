@@ -29,6 +29,9 @@ pub struct BaseHand {
     pub weights: LinkWeights,
     /// The link tree with the artist's joint centres and frames.
     pub skeleton: Skeleton,
+    /// Base (carpometacarpal end) of the index, middle, ring and little metacarpals: the WebXR
+    /// `*-metacarpal` nodes, which the spec's tree folds into the rigid palm.
+    pub metacarpal_bases: [Point; 4],
 }
 
 /// The WebXR joint name of each spec joint (the node sits at the joint, at the proximal end of
@@ -112,7 +115,12 @@ pub fn base_hand_from_glb(bytes: &[u8], side: Side, label: &Path) -> Result<Base
         .meshes
         .into_iter()
         .find(|m| m.skin.is_some())
-        .ok_or_else(|| Error::input(label, "no skinned mesh: the template needs joints and weights"))?;
+        .ok_or_else(|| {
+            Error::input(
+                label,
+                "no skinned mesh: the template needs joints and weights",
+            )
+        })?;
     let skin = sm.skin.as_ref().expect("found above");
 
     // The skeleton from the joint nodes' rest world transforms.
@@ -142,7 +150,12 @@ pub fn base_hand_from_glb(bytes: &[u8], side: Side, label: &Path) -> Result<Base
     for f in Finger::ALL {
         tips[f as usize] = world_pos(find(&format!("{}-tip", webxr_prefix(f)))?)
     }
-    let skeleton = Skeleton::from_centres(side, &centres, tips, &dorsal).map_err(|e| e.in_file(label))?;
+    let skeleton =
+        Skeleton::from_centres(side, &centres, tips, &dorsal).map_err(|e| e.in_file(label))?;
+    let mut metacarpal_bases = [Point::origin(); 4];
+    for (k, f) in Finger::ALL[1..].iter().enumerate() {
+        metacarpal_bases[k] = world_pos(find(&format!("{}-metacarpal", webxr_prefix(*f)))?);
+    }
 
     // Weld the seams and carry the weights (identical on both sides of a seam; averaged to be safe).
     let (mesh, remap) = sm.mesh.weld(0.0);
@@ -174,13 +187,17 @@ pub fn base_hand_from_glb(bytes: &[u8], side: Side, label: &Path) -> Result<Base
         })
         .collect::<Vec<_>>();
     if let Some(v) = weights.iter().position(|w| w.is_empty()) {
-        return Err(Error::input(label, format!("vertex {v} has no skin weight")));
+        return Err(Error::input(
+            label,
+            format!("vertex {v} has no skin weight"),
+        ));
     }
     Ok(BaseHand {
         side,
         mesh,
         weights,
         skeleton,
+        metacarpal_bases,
     })
 }
 
@@ -208,12 +225,12 @@ fn link_weights(
                     add(Link::Arm, w * a);
                     add(Link::Palm, w * (1.0 - a));
                 }
-                None => {
-                    return Err(Error::input(
-                        label,
-                        format!("vertex {v} is weighted to joint '{name}', which is not a WebXR hand joint"),
-                    ))
-                }
+                None => return Err(Error::input(
+                    label,
+                    format!(
+                        "vertex {v} is weighted to joint '{name}', which is not a WebXR hand joint"
+                    ),
+                )),
             }
         }
         row.retain(|x| x.1 > 0.0);
@@ -238,7 +255,11 @@ mod tests {
             assert!(h.mesh.signed_volume() > 0.0, "{side}: faces point outward");
             // About 19 cm from the wrist cut to the middle fingertip: millimetres, not metres.
             let (lo, hi) = h.mesh.bounds().unwrap();
-            assert!((150.0..260.0).contains(&(hi.y - lo.y)), "{side}: {}", hi.y - lo.y);
+            assert!(
+                (150.0..260.0).contains(&(hi.y - lo.y)),
+                "{side}: {}",
+                hi.y - lo.y
+            );
             for w in &h.weights {
                 let s: f64 = w.iter().map(|x| x.1).sum();
                 assert!((s - 1.0).abs() < 1e-9);
@@ -251,8 +272,10 @@ mod tests {
         for side in [Side::Right, Side::Left] {
             let h = load_base_hand(side).unwrap();
             let sk = &h.skeleton;
-            // Dorsal of the palm is +X, fingers along -Y, for both assets.
-            assert!(sk.joint(Joint::Wrist).y().x > 0.9, "{side}");
+            // Fingers along -Y on both assets; the left is the right mirrored in X, so the back
+            // of the hand faces +X on the right and -X on the left.
+            let mirror = if side == Side::Right { 1.0 } else { -1.0 };
+            assert!(sk.joint(Joint::Wrist).y().x * mirror > 0.9, "{side}");
             assert!(sk.joint(Joint::MPip).z().y < -0.9, "{side}");
             // x = y × z is radial on a right hand (thumb side), ulnar on a left one.
             let radial = sk.centre(Joint::IMcp) - sk.centre(Joint::LMcp);
@@ -268,11 +291,20 @@ mod tests {
     fn webxr_names_map_to_links() {
         assert_eq!(link_of_webxr("index-finger-metacarpal"), Some(Link::Palm));
         assert_eq!(link_of_webxr("thumb-metacarpal"), Some(Link::TMeta));
-        assert_eq!(link_of_webxr("pinky-finger-phalanx-intermediate"), Some(Link::LMid));
-        assert_eq!(link_of_webxr("ring-finger-phalanx-distal"), Some(Link::RDist));
+        assert_eq!(
+            link_of_webxr("pinky-finger-phalanx-intermediate"),
+            Some(Link::LMid)
+        );
+        assert_eq!(
+            link_of_webxr("ring-finger-phalanx-distal"),
+            Some(Link::RDist)
+        );
         assert_eq!(link_of_webxr("wrist"), None);
         assert_eq!(link_of_webxr("elbow"), None);
         assert_eq!(webxr_joint_name(Joint::TIp), "thumb-phalanx-distal");
-        assert_eq!(webxr_joint_name(Joint::LMcp), "pinky-finger-phalanx-proximal");
+        assert_eq!(
+            webxr_joint_name(Joint::LMcp),
+            "pinky-finger-phalanx-proximal"
+        );
     }
 }

@@ -16,7 +16,7 @@
 //! Placement fractions along bones are given with each landmark below.
 
 use super::spec::{HandSpec, SPEC_VERSION};
-use crate::anatomy::{Dimension, Finger, Joint, Link, Side};
+use crate::anatomy::{Dimension, Finger, Joint, Side};
 use crate::error::{Error, Result};
 use crate::geometry::{Point, TriMesh, Vec3};
 use crate::skeleton::Skeleton;
@@ -60,13 +60,11 @@ pub fn ray_hit(mesh: &TriMesh, origin: &Point, dir: &Vec3) -> Option<(usize, Poi
 /// The landmark vertex of a dorsal ray (see the module doc).
 pub fn ray_vertex(mesh: &TriMesh, origin: &Point, dir: &Vec3) -> Option<usize> {
     let (f, hit) = ray_hit(mesh, origin, &dir.normalize())?;
-    mesh.faces[f]
-        .into_iter()
-        .min_by(|&a, &b| {
-            (mesh.vertices[a] - hit)
-                .norm()
-                .total_cmp(&(mesh.vertices[b] - hit).norm())
-        })
+    mesh.faces[f].into_iter().min_by(|&a, &b| {
+        (mesh.vertices[a] - hit)
+            .norm()
+            .total_cmp(&(mesh.vertices[b] - hit).norm())
+    })
 }
 
 /// The caliper extreme (see the module doc): the vertex within `radius` of `centre`, at most
@@ -110,6 +108,7 @@ pub fn derive_hand_spec(
     sk: &Skeleton,
     side: Side,
     owner: &[usize],
+    metacarpal_bases: &[Point; 4],
 ) -> Result<HandSpec> {
     let at = |j: Joint| {
         let (a, b) = (j.parent_link().index(), j.child_link().index());
@@ -128,31 +127,35 @@ pub fn derive_hand_spec(
         let jf = sk.joint(j);
         put(j.name(), ray_vertex(mesh, &jf.centre, &jf.y()))?;
     }
-    // Palm markers over the heads (20 % of the way from the MCP toward the base) and bases (85 %)
-    // of the 2nd and 5th metacarpals. The WebXR template has no metacarpal base joint in the
-    // spec's tree, so the base is taken 60 mm proximal of the MCP along the palm's long axis,
-    // which is where the asset's metacarpal nodes sit (58-59 mm).
+    // Palm markers over the heads (20 % of the way from the MCP to the metacarpal's base) and
+    // the bases (85 %) of the 2nd and 5th metacarpals, cast along the palm's dorsal normal.
     let palm_long = sk.joint(Joint::Wrist).z();
-    for (name, mcp, t) in [
-        ("PALM_1", Joint::IMcp, 0.2),
-        ("PALM_2", Joint::LMcp, 0.2),
-        ("PALM_3", Joint::IMcp, 0.85),
-        ("PALM_4", Joint::LMcp, 0.85),
+    for (name, mcp, base, t) in [
+        ("PALM_1", Joint::IMcp, metacarpal_bases[0], 0.2),
+        ("PALM_2", Joint::LMcp, metacarpal_bases[3], 0.2),
+        ("PALM_3", Joint::IMcp, metacarpal_bases[0], 0.85),
+        ("PALM_4", Joint::LMcp, metacarpal_bases[3], 0.85),
     ] {
-        let origin = sk.centre(mcp) - palm_long * (60.0 * t);
+        let origin = sk.centre(mcp) + (base - sk.centre(mcp)) * t;
         put(name, ray_vertex(mesh, &origin, &palm_dorsal))?;
     }
     // Nails: 60 % along the distal link, over its dorsal side.
     for f in Finger::ALL {
         let dj = f.joints()[2];
         let origin = sk.centre(dj) + (sk.tips[f as usize] - sk.centre(dj)) * 0.6;
-        put(&format!("{}_NAIL", f.letter()), ray_vertex(mesh, &origin, &sk.joint(dj).y()))?;
+        put(
+            &format!("{}_NAIL", f.letter()),
+            ray_vertex(mesh, &origin, &sk.joint(dj).y()),
+        )?;
     }
     // Two markers on the thumb metacarpal, at 1/3 and 2/3 of it, dorsal.
     let (cmc, mcp) = (sk.centre(Joint::TCmc), sk.centre(Joint::TMcp));
     for (k, t) in [(1, 1.0 / 3.0), (2, 2.0 / 3.0)] {
         let origin = cmc + (mcp - cmc) * t;
-        put(&format!("T_MC_{k}"), ray_vertex(mesh, &origin, &sk.joint(Joint::TCmc).y()))?;
+        put(
+            &format!("T_MC_{k}"),
+            ray_vertex(mesh, &origin, &sk.joint(Joint::TCmc).y()),
+        )?;
     }
     // Laterals: the caliper extremes of the hand breadth and of the wrist breadth.
     let radial_dir = {
@@ -168,7 +171,10 @@ pub fn derive_hand_spec(
         ("WRIST_ULN", Joint::Wrist, -wrist_radial, 45.0),
     ] {
         let jf = sk.joint(j);
-        put(name, caliper_extreme(mesh, &jf.centre, &jf.z(), radius, &dir, &at(j)))?;
+        put(
+            name,
+            caliper_extreme(mesh, &jf.centre, &jf.z(), radius, &dir, &at(j)),
+        )?;
     }
 
     // Dimensions: pairs of opposite caliper extremes.
@@ -185,7 +191,10 @@ pub fn derive_hand_spec(
                 let keep = at(Joint::MMcp);
                 let hi = caliper_extreme(mesh, &c, &palm_long, 22.0, &palm_dorsal, &keep);
                 let lo = caliper_extreme(mesh, &c, &palm_long, 22.0, &-palm_dorsal, &keep);
-                [hi.ok_or_else(|| err(&d.name()))?, lo.ok_or_else(|| err(&d.name()))?]
+                [
+                    hi.ok_or_else(|| err(&d.name()))?,
+                    lo.ok_or_else(|| err(&d.name()))?,
+                ]
             }
             Dimension::BreadthProximal(f) | Dimension::BreadthDistal(f) => {
                 let j = dimension_joint(d, f);

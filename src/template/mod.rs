@@ -81,7 +81,13 @@ pub fn load_template(side: Side) -> Result<TemplateHand> {
 pub fn derive_template_spec() -> Result<TemplateSpec> {
     let hand = |side| -> Result<HandSpec> {
         let (base, mesh, weights) = refine(side)?;
-        landmark_rule::derive_hand_spec(&mesh, &base.skeleton, side, &dominant_links(&weights))
+        landmark_rule::derive_hand_spec(
+            &mesh,
+            &base.skeleton,
+            side,
+            &dominant_links(&weights),
+            &base.metacarpal_bases,
+        )
     };
     Ok(TemplateSpec {
         right: hand(Side::Right)?,

@@ -7,7 +7,8 @@ use crate::anatomy::{Finger, Joint};
 use crate::error::Result;
 use crate::geometry::Point;
 use crate::render::{
-    compose_grid, draw_label, draw_label_sized, draw_points, draw_segments, render_mesh, Image, View,
+    compose_grid, draw_label, draw_label_sized, draw_points, draw_segments, render_mesh, Image,
+    View,
 };
 use std::path::Path;
 
@@ -46,7 +47,12 @@ pub fn annotated_view(hand: &TemplateHand, view: View, labels: bool, size: u32) 
     let pair_ends: Vec<Point> = pairs.iter().flatten().copied().collect();
     draw_points(&mut img, &view, &pair_ends, 2.5, GREEN, false);
     draw_segments(&mut img, &view, &bone_segments(hand), 2.0, BLUE, true);
-    let centres: Vec<Point> = hand.skeleton.centres().into_iter().map(|(_, c)| c).collect();
+    let centres: Vec<Point> = hand
+        .skeleton
+        .centres()
+        .into_iter()
+        .map(|(_, c)| c)
+        .collect();
     draw_points(&mut img, &view, &centres, 3.5, BLUE, true);
     let marks: Vec<(String, Point)> = hand
         .spec
