@@ -157,16 +157,27 @@ pub fn synth(opts: &SynthOptions, out: &Path, force: bool, log: &Log) -> Result<
     Ok(())
 }
 
+/// The default subject of the demo: seed 1, typical errors, right hand.
+pub fn default_subject_options() -> SynthOptions {
+    SynthOptions::new(1, synth::Preset::Typical)
+}
+
 /// `ergohand demo`: every stage that exists, on the default subject, into `out`.
 ///
-/// Today that is the template stage (issue 2); simulation, reconstruction, validation, posing and
-/// grasping join as they are built.
+/// Today: the template (issue 2) and the simulated default subject (issue 3); reconstruction,
+/// validation, posing and grasping join as they are built.
 pub fn demo(out: &Path, log: &Log) -> Result<()> {
     let t0 = Instant::now();
     create_dir(out)?;
     let t = template(&out.join("template"), &[Side::Right, Side::Left], log)?;
+    let subject_dir = out.join("subject");
+    let opts = default_subject_options();
+    let t1 = Instant::now();
+    let s = synth::simulate(&opts)?;
+    synth::write_subject(&subject_dir, &s, true)?;
+    let synth_s = t1.elapsed().as_secs_f64();
     if !log.quiet() {
-        println!("ergohand demo: stages run: template");
+        println!("ergohand demo: stages run: template, synth");
         for h in &t.hands {
             let (lo, hi) = h.mesh.bounds().expect("non-empty template");
             println!(
@@ -180,15 +191,33 @@ pub fn demo(out: &Path, log: &Log) -> Result<()> {
                 h.spec.landmarks.len()
             );
         }
+        let frames: usize = s.trials.values().map(|t| t.n_frames()).sum();
+        println!(
+            "  default subject {} (seed {}, {}): {} trials / {} frames, reference surface {} faces, volume {:.0} cm³ (true {:.0} cm³), {:.1} s",
+            s.subject.name,
+            opts.seed,
+            opts.preset.name(),
+            s.trials.len(),
+            frames,
+            s.reference.n_faces(),
+            s.reference.signed_volume() / 1000.0,
+            s.true_skin.signed_volume() / 1000.0,
+            synth_s
+        );
         println!("  files:");
         for f in &t.files {
             println!("    {}", f.display());
         }
         println!(
+            "    {}/ (subject.toml, trials/*.c3d, reference.ply, truth.json)",
+            subject_dir.display()
+        );
+        println!(
             "  done in {:.1} s; open {}",
             t0.elapsed().as_secs_f64(),
             out.join("template").join("template-right.png").display()
         );
+        println!("  not built yet: reconstruct, validate, pose, grasp (see README.md)");
     }
     Ok(())
 }

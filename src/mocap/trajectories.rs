@@ -127,6 +127,26 @@ impl Trajectories {
         Ok(())
     }
 
+    /// Check that every marker of `names` is present and visible in `frame`: the reference frame
+    /// of a calibration trial, where every registration of the seed paper's equation 1 is
+    /// anchored (a marker occluded there cannot be registered). The error names the trial file,
+    /// the marker and the frame.
+    pub fn require_at(&self, names: &[&str], frame: usize) -> Result<()> {
+        self.require(names)?;
+        for name in names {
+            if self.get(name, frame).is_none() {
+                return Err(Error::input(
+                    &self.source,
+                    format!(
+                        "marker '{name}' is missing in the reference frame {frame}; choose another \
+                         reference_frame in subject.toml or fill the gap in the capture software"
+                    ),
+                ));
+            }
+        }
+        Ok(())
+    }
+
     /// Mean of the valid samples of `name` over `frames` (clamped to the trial), the static-trial
     /// rule of spec section 2 ("one frame is enough; more are averaged"). `None` when the marker
     /// is absent or has no valid sample in the range.
@@ -297,5 +317,28 @@ mod tests {
         for n in ["PALM_5", "I_PROX_4", "palm_1", "LHand1", ""] {
             assert!(!is_spec_marker_name(n), "{n}");
         }
+    }
+
+    #[test]
+    fn require_at_names_marker_and_frame() {
+        let p = |x: f64| Some(Point::new(x, 0.0, 0.0));
+        let t = Trajectories::new(
+            100.0,
+            vec!["PALM_1".into(), "PALM_2".into()],
+            vec![vec![p(1.0), p(2.0)], vec![None, p(3.0)]],
+            "trials/index.c3d",
+        )
+        .unwrap();
+        t.require_at(&["PALM_1", "PALM_2"], 1).unwrap();
+        let e = t
+            .require_at(&["PALM_1", "PALM_2"], 0)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("trials/index.c3d") && e.contains("PALM_2") && e.contains("frame 0"),
+            "{e}"
+        );
+        let e = t.require_at(&["PALM_3"], 0).unwrap_err().to_string();
+        assert!(e.contains("PALM_3"), "{e}");
     }
 }

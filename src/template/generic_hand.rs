@@ -225,12 +225,14 @@ fn link_weights(
                     add(Link::Arm, w * a);
                     add(Link::Palm, w * (1.0 - a));
                 }
-                None => return Err(Error::input(
-                    label,
-                    format!(
+                None => {
+                    return Err(Error::input(
+                        label,
+                        format!(
                         "vertex {v} is weighted to joint '{name}', which is not a WebXR hand joint"
                     ),
-                )),
+                    ))
+                }
             }
         }
         row.retain(|x| x.1 > 0.0);
@@ -306,5 +308,32 @@ mod tests {
             webxr_joint_name(Joint::LMcp),
             "pinky-finger-phalanx-proximal"
         );
+    }
+
+    /// A template whose surface is open (a face removed) or non-manifold is refused with the
+    /// file and the offending edge named, never loaded into a silently wrong model.
+    #[test]
+    fn open_or_non_manifold_template_is_refused() {
+        use crate::io::gltf::{glb_bytes, read_gltf_slice};
+        let label = Path::new("bad-hand.glb");
+        let mut scene = read_gltf_slice(RIGHT_GLB, Units::Metres, label).unwrap();
+        scene.meshes[0].mesh.faces.pop();
+        let bytes = glb_bytes(&scene, Units::Metres).unwrap();
+        let e = base_hand_from_glb(&bytes, Side::Right, label)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.starts_with("bad-hand.glb:") && e.contains("open") && e.contains("edge"),
+            "{e}"
+        );
+
+        let mut scene = read_gltf_slice(RIGHT_GLB, Units::Metres, label).unwrap();
+        let f = scene.meshes[0].mesh.faces[0];
+        scene.meshes[0].mesh.faces.push(f);
+        let bytes = glb_bytes(&scene, Units::Metres).unwrap();
+        let e = base_hand_from_glb(&bytes, Side::Right, label)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("manifold") || e.contains("oriented"), "{e}");
     }
 }
