@@ -54,10 +54,9 @@ pub fn clamp_pose(pose: &Pose) -> (Pose, Vec<LimitViolation>) {
     let mut out = pose.clone();
     let mut v = Vec::new();
     for j in Joint::ALL {
-        let lim = joint_limits_deg(j);
-        for d in 0..3 {
+        for (d, [lo, hi]) in joint_limits_deg(j).into_iter().enumerate() {
             let deg = pose.angles[j.index()][d].to_degrees();
-            let c = deg.clamp(lim[d][0], lim[d][1]);
+            let c = deg.clamp(lo, hi);
             // A tolerance keeps round-off of degree/radian conversion from warning.
             if (c - deg).abs() > 1e-9 {
                 out.angles[j.index()][d] = c.to_radians();

@@ -187,6 +187,7 @@ pub fn simulate_trial(
     let pivot = sk.centre(Joint::Wrist);
     let mut out = vec![Vec::with_capacity(n); defs.len()];
     for f in 0..n {
+        // Frame index drives time, the masks and the outputs alike.
         let t = f as f64 / rate;
         let mut pose = Pose::zero();
         let angles = trial_angles(trial, t, duration, err.rom);
@@ -195,8 +196,8 @@ pub fn simulate_trial(
         }
         pose.root = to_lab * seat * drift.at(t, &pivot);
         let tf = link_transforms(sk, &pose);
-        for (m, d) in defs.iter().enumerate() {
-            if !masks[m][f] {
+        for ((m, d), mask) in defs.iter().enumerate().zip(&masks) {
+            if !mask[f] {
                 out[m].push(None);
                 continue;
             }

@@ -110,7 +110,7 @@ mod tests {
             for (_, a) in at(0.0).into_iter().chain(at(0.5)) {
                 assert!(a.iter().all(|x| x.abs() < 1e-12), "{trial:?}");
             }
-            let mut maxes = vec![[0.0f64; 3]; 3];
+            let mut maxes = [[0.0f64; 3]; 3];
             for k in 0..6000 {
                 for (i, (_, a)) in at(k as f64 / 100.0).into_iter().enumerate() {
                     for d in 0..3 {
