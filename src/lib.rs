@@ -18,6 +18,7 @@ pub mod io;
 pub mod mocap;
 pub mod render;
 pub mod skeleton;
+pub mod synth;
 pub mod template;
 
 pub use error::{Error, Result};
