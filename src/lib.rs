@@ -15,6 +15,7 @@ pub mod anatomy;
 pub mod error;
 pub mod geometry;
 pub mod io;
+pub mod link;
 pub mod mocap;
 pub mod render;
 pub mod skeleton;
