@@ -17,6 +17,7 @@ pub mod cli;
 pub mod error;
 pub mod geometry;
 pub mod io;
+pub mod link;
 pub mod mocap;
 pub mod render;
 pub mod rng;
