@@ -104,6 +104,21 @@ impl Rng {
         }
     }
 
+    /// Uniformly distributed rotation (a normalised Gaussian quaternion; Shoemake 1992).
+    pub fn rotation(&mut self) -> nalgebra::UnitQuaternion<f64> {
+        loop {
+            let q = nalgebra::Quaternion::new(
+                self.normal(),
+                self.normal(),
+                self.normal(),
+                self.normal(),
+            );
+            if q.norm() > 1e-6 {
+                return nalgebra::UnitQuaternion::from_quaternion(q);
+            }
+        }
+    }
+
     /// Vector of independent normals with standard deviation `sd`.
     pub fn gauss3(&mut self, sd: f64) -> Vector3<f64> {
         Vector3::new(self.normal(), self.normal(), self.normal()) * sd

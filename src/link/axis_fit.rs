@@ -83,7 +83,7 @@ pub fn common_plane_normal(tracks: &[&[Point]]) -> Result<AxisFit> {
 mod tests {
     use super::*;
     use crate::link::sphere_fit::plane_basis;
-    use crate::link::test_rng::Rng;
+    use crate::rng::Rng;
     use proptest::prelude::*;
 
     /// Angle between two lines (sign-free), degrees, accurate near 0.
@@ -153,7 +153,7 @@ mod tests {
             let clean = hinge_tracks(&mut rng, &Point::origin(), &axis, 300);
             let noisy: Vec<Vec<Point>> = clean
                 .iter()
-                .map(|t| t.iter().map(|p| p + rng.gaussian_vec(sd)).collect())
+                .map(|t| t.iter().map(|p| p + rng.gauss3(sd)).collect())
                 .collect();
             let fit = common_plane_normal(&as_slices(&noisy)).unwrap();
             // First-order tilt variance about in-plane direction j is sd^2 / (N lambda_j), with

@@ -281,7 +281,7 @@ pub fn sara_axis(parent: &[Isometry3<f64>], child: &[Isometry3<f64>]) -> Result<
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::link::test_rng::Rng;
+    use crate::rng::Rng;
     use nalgebra::{Translation3, UnitQuaternion};
     use proptest::prelude::*;
 
@@ -420,7 +420,7 @@ mod tests {
             let noisy: Vec<_> = child
                 .iter()
                 .map(|c| {
-                    let jitter = UnitQuaternion::from_scaled_axis(rng.gaussian_vec(sd));
+                    let jitter = UnitQuaternion::from_scaled_axis(rng.gauss3(sd));
                     Isometry3::from_parts(c.translation, c.rotation * jitter)
                 })
                 .collect();

@@ -16,6 +16,3 @@
 pub mod axis_fit;
 pub mod functional;
 pub mod sphere_fit;
-
-#[cfg(test)]
-mod test_rng;

@@ -445,7 +445,7 @@ pub fn circle_centre_on_axis(tracks: &[&[Point]], axis: &Vec3, near: &Point) -> 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::link::test_rng::Rng;
+    use crate::rng::Rng;
     use nalgebra::UnitQuaternion;
     use proptest::prelude::*;
 
@@ -478,7 +478,7 @@ mod tests {
         // Markers on one segment: roughly along +x from the joint, 30-60 mm away.
         (0..k)
             .map(|_| {
-                let d = (Vec3::new(1.0, 0.0, 0.0) + rng.gaussian_vec(0.3)).normalize();
+                let d = (Vec3::new(1.0, 0.0, 0.0) + rng.gauss3(0.3)).normalize();
                 d * rng.range(30.0, 60.0)
             })
             .collect()
@@ -554,7 +554,7 @@ mod tests {
             let clean = rotating_markers(&mut rng, &centre, &offs, 200, 20f64.to_radians());
             let noisy: Vec<Vec<Point>> = clean
                 .iter()
-                .map(|t| t.iter().map(|p| p + rng.gaussian_vec(sd)).collect())
+                .map(|t| t.iter().map(|p| p + rng.gauss3(sd)).collect())
                 .collect();
             let ls = common_sphere_centre(&as_slices(&noisy)).unwrap();
             let bc = common_sphere_centre_bias_compensated(&as_slices(&noisy), None).unwrap();

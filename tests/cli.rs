@@ -1,0 +1,149 @@
+//! The command line as a user meets it: exit codes, one-line errors naming the file and item,
+//! outputs that exist only when complete.
+
+use std::path::Path;
+use std::process::{Command, Output};
+
+fn ergohand(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_ergohand"))
+        .args(args)
+        .output()
+        .expect("the binary runs")
+}
+
+fn stderr(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+/// The last stderr line is the error, one line, starting with `error:`.
+fn error_line(o: &Output) -> String {
+    let e = stderr(o);
+    let line = e.lines().last().unwrap_or_default().to_string();
+    assert!(line.starts_with("error: "), "stderr: {e}");
+    line
+}
+
+#[test]
+fn stages_not_built_yet_say_so_and_exit_2() {
+    for args in [
+        &["reconstruct", "S01", "--out", "OUT"][..],
+        &["validate", "S01"][..],
+        &["pose", "OUT", "--pose", "p.toml", "--out", "h.glb"][..],
+        &["grasp", "scene.toml", "--out", "G"][..],
+        &["batch", "SUBJECTS", "--out", "B"][..],
+    ] {
+        let o = ergohand(args);
+        assert_eq!(o.status.code(), Some(2), "{args:?}");
+        let line = error_line(&o);
+        assert!(
+            line.contains("not built yet") && line.contains(args[0]),
+            "{line}"
+        );
+    }
+}
+
+#[test]
+fn synth_writes_a_subject_and_refuses_bad_options() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("S");
+    let out_s = out.to_str().unwrap();
+
+    let o = ergohand(&["synth", "--seed", "3", "--out", out_s, "--preset", "typcal"]);
+    assert_eq!(o.status.code(), Some(1));
+    let line = error_line(&o);
+    assert!(
+        line.contains("--preset") && line.contains("typcal"),
+        "{line}"
+    );
+    assert!(!out.exists(), "nothing written on bad input");
+
+    let o = ergohand(&["synth", "--seed", "3", "--out", out_s, "--hand", "middle"]);
+    assert!(error_line(&o).contains("--hand"));
+
+    let args = [
+        "synth",
+        "--seed",
+        "3",
+        "--out",
+        out_s,
+        "--duration",
+        "2",
+        "--quiet",
+    ];
+    let o = ergohand(&args);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(
+        o.stderr.is_empty(),
+        "--quiet prints nothing: {}",
+        stderr(&o)
+    );
+    for f in [
+        "subject.toml",
+        "truth.json",
+        "reference.ply",
+        "trials/index.c3d",
+        "trials/reference.c3d",
+    ] {
+        assert!(out.join(f).is_file(), "{f}");
+    }
+
+    // An existing, non-empty folder needs --force.
+    let o = ergohand(&args);
+    assert_eq!(o.status.code(), Some(1));
+    let line = error_line(&o);
+    assert!(line.contains(out_s) && line.contains("--force"), "{line}");
+    let mut forced = args.to_vec();
+    forced.push("--force");
+    assert!(ergohand(&forced).status.success());
+
+    // An unwritable place: the error names it.
+    let blocked = dir.path().join("file");
+    std::fs::write(&blocked, b"x").unwrap();
+    let target = blocked.join("S");
+    let o = ergohand(&[
+        "synth",
+        "--seed",
+        "3",
+        "--out",
+        target.to_str().unwrap(),
+        "--duration",
+        "2",
+    ]);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(error_line(&o).contains(blocked.to_str().unwrap()));
+}
+
+#[test]
+fn template_writes_mesh_spec_and_picture() {
+    let dir = tempfile::tempdir().unwrap();
+    let o = ergohand(&["template", "--out", dir.path().to_str().unwrap(), "--quiet"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    for f in [
+        "template-right.obj",
+        "template-left.obj",
+        "template-right.png",
+        "template-left.png",
+        "template-spec.toml",
+    ] {
+        let p = dir.path().join(f);
+        assert!(
+            p.is_file() && std::fs::metadata(&p).unwrap().len() > 1000,
+            "{f}"
+        );
+    }
+    // The spec written is the one shipped.
+    let shipped =
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/generic-hand/template-spec.toml");
+    assert_eq!(
+        std::fs::read_to_string(dir.path().join("template-spec.toml")).unwrap(),
+        std::fs::read_to_string(shipped).unwrap()
+    );
+    // The OBJ reads back as the closed high-resolution template.
+    let m = ergohand::io::obj::read_obj(
+        &dir.path().join("template-right.obj"),
+        ergohand::io::Units::Millimetres,
+    )
+    .unwrap();
+    assert_eq!(m.n_faces(), 37_024);
+    m.check_closed_manifold().unwrap();
+}
