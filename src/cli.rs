@@ -157,6 +157,84 @@ pub fn synth(opts: &SynthOptions, out: &Path, force: bool, log: &Log) -> Result<
     Ok(())
 }
 
+/// What `reconstruct` writes in `report.json`.
+#[derive(serde::Serialize)]
+struct ReconstructReport {
+    subject: String,
+    hand: Side,
+    stages_run: Vec<&'static str>,
+    stages_not_built: Vec<&'static str>,
+    timings_s: std::collections::BTreeMap<&'static str, f64>,
+    warnings: Vec<String>,
+}
+
+/// `ergohand reconstruct SUBJECT_DIR --out OUT`: the pipeline of the seed paper. Today the link
+/// model (issue 4): `OUT/link_model.json` and `OUT/report.json`.
+pub fn reconstruct(subject_dir: &Path, out: &Path, log: &Log) -> Result<crate::link::LinkModel> {
+    let t0 = Instant::now();
+    let subject = crate::mocap::subject::Subject::load(subject_dir)?;
+    log.info(format!(
+        "reconstruct {}: link model from 7 trials",
+        subject.name
+    ));
+    let model = crate::link::estimate_link_model(&subject)?;
+    let t_link = t0.elapsed().as_secs_f64();
+    for w in &model.warnings {
+        log.warn(w);
+    }
+    create_dir(out)?;
+    model.write(&out.join("link_model.json"))?;
+    let report = ReconstructReport {
+        subject: subject.name.clone(),
+        hand: subject.hand,
+        stages_run: vec!["link"],
+        stages_not_built: vec!["skin (issue 5)", "tet (issue 6)", "hand.glb (issue 7)"],
+        timings_s: [("link", t_link)].into_iter().collect(),
+        warnings: model.warnings.clone(),
+    };
+    let json = serde_json::to_string_pretty(&report).expect("serialisable");
+    atomic::write_bytes_atomic(&out.join("report.json"), json.as_bytes())?;
+    log.info(format!(
+        "link model: 16 joints in {:.2} s, {} warnings -> {}",
+        t_link,
+        model.warnings.len(),
+        out.join("link_model.json").display()
+    ));
+    Ok(model)
+}
+
+/// `ergohand validate SUBJECT_DIR --model OUT [--report DIR]`: today the link model against
+/// `truth.json` (per-joint centre and axis errors, link lengths) into `DIR/metrics.json`, and a
+/// table on stdout.
+pub fn validate(subject_dir: &Path, model: &Path, report: &Path, log: &Log) -> Result<()> {
+    let truth = subject_dir.join("truth.json");
+    if !truth.exists() {
+        return Err(Error::input(
+            &truth,
+            "missing: only simulated subjects carry truth.json; the surface checks against reference.ply come with issue 9",
+        ));
+    }
+    let acc = crate::validate::link_accuracy(&model.join("link_model.json"), &truth)?;
+    create_dir(report)?;
+    let json = serde_json::to_string_pretty(&acc).expect("serialisable");
+    atomic::write_bytes_atomic(&report.join("metrics.json"), json.as_bytes())?;
+    if !log.quiet() {
+        println!("joint    centre error (mm)   axis error (deg)");
+        for e in &acc.joints {
+            let axis = e
+                .axis_deg
+                .map(|a| format!("{a:.2}"))
+                .unwrap_or_else(|| "-".into());
+            println!("{:8} {:>10.2}          {:>8}", e.joint, e.centre_mm, axis);
+        }
+        println!("link         estimated    true (mm)");
+        for (k, (m, t)) in &acc.link_lengths {
+            println!("{k:12} {m:>8.2} {t:>10.2}");
+        }
+    }
+    Ok(())
+}
+
 /// The default subject of the demo: seed 1, typical errors, right hand.
 pub fn default_subject_options() -> SynthOptions {
     SynthOptions::new(1, synth::Preset::Typical)

@@ -24,5 +24,6 @@ pub mod rng;
 pub mod skeleton;
 pub mod synth;
 pub mod template;
+pub mod validate;
 
 pub use error::{Error, Result};

@@ -117,8 +117,18 @@ fn main() -> ExitCode {
             force,
         } => cli::synth_options(seed, &preset, &hand, &posture, duration)
             .and_then(|opts| cli::synth(&opts, &out, force, &log)),
-        Command::Reconstruct { .. } => return not_built("reconstruct", 4),
-        Command::Validate { .. } => return not_built("validate", 9),
+        Command::Reconstruct { subject_dir, out } => {
+            cli::reconstruct(&subject_dir, &out, &log).map(|_| ())
+        }
+        Command::Validate {
+            subject_dir,
+            model,
+            report,
+        } => {
+            let model = model.unwrap_or_else(|| subject_dir.join("out"));
+            let report = report.unwrap_or_else(|| model.join("report"));
+            cli::validate(&subject_dir, &model, &report, &log)
+        }
         Command::Pose { .. } => return not_built("pose", 7),
         Command::Grasp { .. } => return not_built("grasp", 8),
         Command::Batch { .. } => return not_built("batch", 9),

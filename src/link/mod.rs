@@ -12,7 +12,13 @@
 //! * [`axis_fit`]: common plane normal (Gamage & Lasenby 2002).
 //! * [`functional`]: estimators using both segments' poses, SCoRE (Ehrig et al. 2006) and SARA
 //!   (Ehrig et al. 2007), beyond the paper.
+//! * [`registration`]: equation 1, the per-frame registration of the parent's markers.
+//! * [`model`]: the whole link model of a subject from its trials, with diagnostics.
 
 pub mod axis_fit;
 pub mod functional;
+pub mod model;
+pub mod registration;
 pub mod sphere_fit;
+
+pub use model::{estimate_link_model, JointEstimate, LinkModel};

@@ -1,0 +1,7 @@
+//! Validation: reads a reconstruction's outputs and a subject's references (`truth.json`,
+//! `reference.ply`) and measures the errors. It only reads files the pipeline wrote; it never
+//! calls back into the stages.
+
+pub mod link_accuracy;
+
+pub use link_accuracy::{link_accuracy, JointError, LinkAccuracy};
