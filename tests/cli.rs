@@ -26,8 +26,6 @@ fn error_line(o: &Output) -> String {
 #[test]
 fn stages_not_built_yet_say_so_and_exit_2() {
     for args in [
-        &["reconstruct", "S01", "--out", "OUT"][..],
-        &["validate", "S01"][..],
         &["pose", "OUT", "--pose", "p.toml", "--out", "h.glb"][..],
         &["grasp", "scene.toml", "--out", "G"][..],
         &["batch", "SUBJECTS", "--out", "B"][..],
@@ -111,6 +109,57 @@ fn synth_writes_a_subject_and_refuses_bad_options() {
     ]);
     assert_eq!(o.status.code(), Some(1));
     assert!(error_line(&o).contains(blocked.to_str().unwrap()));
+}
+
+#[test]
+fn reconstruct_and_validate_a_simulated_subject() {
+    let dir = tempfile::tempdir().unwrap();
+    let subj = dir.path().join("S");
+    let out = dir.path().join("OUT");
+    let (s, o) = (subj.to_str().unwrap(), out.to_str().unwrap());
+
+    // A folder without subject.toml: the error names the file.
+    let o1 = ergohand(&["reconstruct", s, "--out", o]);
+    assert_eq!(o1.status.code(), Some(1));
+    assert!(error_line(&o1).contains("subject.toml"));
+    assert!(!out.exists());
+
+    let gen = ergohand(&[
+        "synth",
+        "--seed",
+        "5",
+        "--preset",
+        "clean",
+        "--out",
+        s,
+        "--duration",
+        "8",
+        "-q",
+    ]);
+    assert!(gen.status.success(), "{}", stderr(&gen));
+    let r = ergohand(&["reconstruct", s, "--out", o, "-q"]);
+    assert!(r.status.success(), "{}", stderr(&r));
+    assert!(out.join("link_model.json").is_file() && out.join("report.json").is_file());
+    let v = ergohand(&[
+        "validate",
+        s,
+        "--model",
+        o,
+        "--report",
+        out.join("rep").to_str().unwrap(),
+        "-q",
+    ]);
+    assert!(v.status.success(), "{}", stderr(&v));
+    assert!(out.join("rep/metrics.json").is_file());
+
+    // A trial whose palm marker is unlabelled: the error names the trial and the marker.
+    let toml = std::fs::read_to_string(subj.join("subject.toml")).unwrap();
+    let relabelled = toml.replace("[labels]", "[labels]\n\"PALM_3\" = \"SOMETHING_ELSE\"");
+    std::fs::write(subj.join("subject.toml"), relabelled).unwrap();
+    let r = ergohand(&["reconstruct", s, "--out", o]);
+    assert_eq!(r.status.code(), Some(1));
+    let line = error_line(&r);
+    assert!(line.contains(".c3d") && line.contains("PALM_3"), "{line}");
 }
 
 #[test]
