@@ -67,11 +67,19 @@ enum Command {
     },
     /// Compare a reconstruction with reference.ply / truth.json and write a report.
     Validate {
+        /// The subject folder (with truth.json), or with --suite the suite folder
+        /// (holding suite.toml).
         subject_dir: PathBuf,
+        /// The reconstruction folder (default: SUBJECT_DIR/out).
         #[arg(long)]
         model: Option<PathBuf>,
+        /// Where to write metrics.json (default: MODEL/report; with --suite: reports/).
         #[arg(long)]
         report: Option<PathBuf>,
+        /// Run every subject of SUBJECT_DIR/suite.toml, generating missing ones under
+        /// SUBJECT_DIR/subjects/.
+        #[arg(long)]
+        suite: bool,
     },
     /// Pose a reconstructed hand.
     Pose {
@@ -122,8 +130,19 @@ fn main() -> ExitCode {
         }
         Command::Validate {
             subject_dir,
+            report,
+            suite: true,
+            ..
+        } => cli::validate_suite(
+            &subject_dir,
+            &report.unwrap_or_else(|| "reports".into()),
+            &log,
+        ),
+        Command::Validate {
+            subject_dir,
             model,
             report,
+            suite: false,
         } => {
             let model = model.unwrap_or_else(|| subject_dir.join("out"));
             let report = report.unwrap_or_else(|| model.join("report"));
