@@ -326,8 +326,9 @@ pub fn default_subject_options() -> SynthOptions {
 
 /// `ergohand demo`: every stage that exists, on the default subject, into `out`.
 ///
-/// Today: the template (issue 2) and the simulated default subject (issue 3); reconstruction,
-/// validation, posing and grasping join as they are built.
+/// Today: the template (issue 2), the simulated default subject (issue 3), its link model
+/// (issue 4) and the link model's validation against the truth; the skin, tetrahedral mesh,
+/// posing and grasping join as they are built.
 pub fn demo(out: &Path, log: &Log) -> Result<()> {
     let t0 = Instant::now();
     create_dir(out)?;
@@ -338,8 +339,20 @@ pub fn demo(out: &Path, log: &Log) -> Result<()> {
     let s = synth::simulate(&opts)?;
     synth::write_subject(&subject_dir, &s, true)?;
     let synth_s = t1.elapsed().as_secs_f64();
+    let model_dir = out.join("model");
+    let report_dir = out.join("report");
+    let t2 = Instant::now();
+    let model = reconstruct(&subject_dir, &model_dir, &Log::new(true))?;
+    let link_s = t2.elapsed().as_secs_f64();
+    validate(&subject_dir, &model_dir, &report_dir, &Log::new(true))?;
+    let acc = crate::validate::link_accuracy(
+        &model_dir.join("link_model.json"),
+        &subject_dir.join("truth.json"),
+    )?;
     if !log.quiet() {
-        println!("ergohand demo: stages run: template, synth");
+        println!(
+            "ergohand demo: stages run: template, synth, link model, validation of the link model"
+        );
         for h in &t.hands {
             let (lo, hi) = h.mesh.bounds().expect("non-empty template");
             println!(
@@ -366,6 +379,28 @@ pub fn demo(out: &Path, log: &Log) -> Result<()> {
             s.true_skin.signed_volume() / 1000.0,
             synth_s
         );
+        let errs = |three: bool| -> Vec<f64> {
+            let mut v: Vec<f64> = acc
+                .joints
+                .iter()
+                .filter(|e| {
+                    crate::anatomy::Joint::from_name(&e.joint).map(|j| j.dof() == 3) == Some(three)
+                })
+                .map(|e| e.centre_mm)
+                .collect();
+            v.sort_by(f64::total_cmp);
+            v
+        };
+        let (e3, e1) = (errs(true), errs(false));
+        println!(
+            "  link model: 16 joints in {:.2} s, {} warnings; centre error vs truth: 3-DOF median {:.2} mm (max {:.2}), 1-DOF median {:.2} mm (max {:.2})",
+            link_s,
+            model.warnings.len(),
+            e3[e3.len() / 2],
+            e3.last().copied().unwrap_or(0.0),
+            e1[e1.len() / 2],
+            e1.last().copied().unwrap_or(0.0)
+        );
         println!("  files:");
         for f in &t.files {
             println!("    {}", f.display());
@@ -374,12 +409,16 @@ pub fn demo(out: &Path, log: &Log) -> Result<()> {
             "    {}/ (subject.toml, trials/*.c3d, reference.ply, truth.json)",
             subject_dir.display()
         );
+        println!("    {}", model_dir.join("link_model.json").display());
+        println!("    {}", report_dir.join("metrics.json").display());
         println!(
             "  done in {:.1} s; open {}",
             t0.elapsed().as_secs_f64(),
             out.join("template").join("template-right.png").display()
         );
-        println!("  not built yet: reconstruct, validate, pose, grasp (see README.md)");
+        println!(
+            "  not built yet: skin, tetrahedral mesh, pose, grasp, report pictures (see README.md)"
+        );
     }
     Ok(())
 }
