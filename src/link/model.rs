@@ -31,10 +31,13 @@ use std::collections::BTreeMap;
 use std::path::Path;
 
 /// A 3-DOF joint whose child rotated less than this (degrees) is flagged: the centre is poorly
-/// determined (Ehrig et al. 2006 report errors growing steeply below about 20-30°).
-pub const MIN_ROM_3DOF_DEG: f64 = 30.0;
-/// A 1-DOF joint that flexed less than this (degrees) is flagged.
-pub const MIN_ROM_1DOF_DEG: f64 = 30.0;
+/// determined. The seed paper's calibration motions reach about 80° at the MCPs, 55° at the
+/// thumb CMC and 60° at the wrist; a joint that moved less than about half of that gives
+/// centres whose error grows quickly (Ehrig et al. 2006; `small-rom` in the suite).
+pub const MIN_ROM_3DOF_DEG: f64 = 45.0;
+/// A 1-DOF joint that flexed less than this (degrees) is flagged (the protocol reaches about
+/// 100° at PIP, 70° at DIP and IP, 50° at the thumb MCP).
+pub const MIN_ROM_1DOF_DEG: f64 = 45.0;
 /// Below this ratio of the smallest to the largest principal spread, the child's motion is too
 /// planar for a sphere fit (a hinge-like motion at a 3-DOF joint): flagged.
 pub const MIN_SPHERE_CONDITION: f64 = 0.02;
@@ -710,6 +713,40 @@ mod tests {
                 assert!(a < 4.0, "{}: {a:.2} deg", e.joint);
             }
         }
+    }
+
+    /// Five simulated sessions of one typical hand (new plates, noise, soft-tissue slide and gaps
+    /// each time): the SD of the index link lengths. The seed paper measured 0.52 mm (MCP-PIP)
+    /// and 0.92 mm (PIP-DIP) on a real subject and issue 4 asks for 0.3 mm; today's method
+    /// reaches about 1.2 and 1.9 mm on this subject (README, "Link model"), so this is a
+    /// regression guard at that level, not the goal.
+    #[test]
+    fn index_link_lengths_are_repeatable() {
+        let lengths: Vec<(f64, f64)> = (1..=5)
+            .map(|repeat| {
+                let s = simulate(&SynthOptions {
+                    duration_s: Some(40.0),
+                    voxel_mm: 2.0,
+                    repeat,
+                    ..SynthOptions::new(51, Preset::Typical)
+                })
+                .unwrap();
+                let m = estimate_link_model_from(Side::Right, 0, &s.trials).unwrap();
+                let c = |j: Joint| m.joints[j.index()].centre;
+                (
+                    (c(Joint::IPip) - c(Joint::IMcp)).norm(),
+                    (c(Joint::IDip) - c(Joint::IPip)).norm(),
+                )
+            })
+            .collect();
+        let sd = |v: Vec<f64>| {
+            let m = v.iter().sum::<f64>() / v.len() as f64;
+            (v.iter().map(|x| (x - m).powi(2)).sum::<f64>() / (v.len() - 1) as f64).sqrt()
+        };
+        let sd1 = sd(lengths.iter().map(|l| l.0).collect());
+        let sd2 = sd(lengths.iter().map(|l| l.1).collect());
+        eprintln!("index link length SD over 5 sessions: MCP-PIP {sd1:.3} mm, PIP-DIP {sd2:.3} mm; {lengths:?}");
+        assert!(sd1 < 1.6 && sd2 < 2.4, "{sd1} {sd2}");
     }
 
     #[test]

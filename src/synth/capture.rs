@@ -77,12 +77,24 @@ pub fn plate_markers(
     {
         drivers.push((*next, 90.0));
     }
+    // The plate's whole slide over the joints' ranges is 1-3 mm (typical), shared between the
+    // drivers; mostly along the link (skin is pulled over the knuckles), some sideways.
+    let total = rng.range(sta_range.0, sta_range.1);
+    let share = rng.range(0.3, 0.7);
+    let n = drivers.len();
     let sta: Vec<(Vec3, Joint, f64)> = drivers
         .into_iter()
-        .map(|(d, range)| {
-            // Mostly along the link (skin is pulled over the knuckle), some sideways.
+        .enumerate()
+        .map(|(k, (d, range))| {
             let dir = (jf.z() * rng.range(-1.0, 1.0) + rng.unit_vector() * 0.4).normalize();
-            (dir * rng.range(sta_range.0, sta_range.1) * 0.7, d, range)
+            let part = if n == 1 {
+                1.0
+            } else if k == 0 {
+                share
+            } else {
+                1.0 - share
+            };
+            (dir * total * part, d, range)
         })
         .collect();
     (0..3)

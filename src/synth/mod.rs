@@ -170,6 +170,10 @@ pub struct SynthOptions {
     /// Marker radius plus base: skin surface to marker centre, mm.
     #[serde(default = "default_offset")]
     pub marker_offset_mm: f64,
+    /// Repeat number of the capture session: the same hand (same seed) captured again with new
+    /// plates, noise, artefact and gaps (0 = the first session). For repeatability studies.
+    #[serde(default)]
+    pub repeat: u32,
 }
 
 fn default_side() -> Side {
@@ -196,6 +200,7 @@ impl SynthOptions {
             duration_s: None,
             voxel_mm: default_voxel(),
             marker_offset_mm: default_offset(),
+            repeat: 0,
         }
     }
 }
@@ -419,7 +424,11 @@ pub fn simulate(opts: &SynthOptions) -> Result<SyntheticSubject> {
     // identity for the trials.
     let ident = Isometry3::identity();
     for ((key, trial), duration) in trial_list.iter().zip(&durations) {
-        let mut trng = root.fork(&format!("trial-{key}"));
+        let mut trng = if opts.repeat == 0 {
+            root.fork(&format!("trial-{key}"))
+        } else {
+            root.fork(&format!("trial-{key}-repeat-{}", opts.repeat))
+        };
         let mut defs: Vec<MarkerDef> = palm_defs
             .iter()
             .map(|d| {
