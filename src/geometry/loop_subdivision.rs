@@ -266,49 +266,7 @@ mod tests {
 
     /// Regular icosahedron with unit circumradius, outward CCW faces.
     fn icosahedron() -> TriMesh {
-        let t = (1.0 + 5f64.sqrt()) / 2.0;
-        let raw = [
-            (-1., t, 0.),
-            (1., t, 0.),
-            (-1., -t, 0.),
-            (1., -t, 0.),
-            (0., -1., t),
-            (0., 1., t),
-            (0., -1., -t),
-            (0., 1., -t),
-            (t, 0., -1.),
-            (t, 0., 1.),
-            (-t, 0., -1.),
-            (-t, 0., 1.),
-        ];
-        let s = (1.0 + t * t).sqrt();
-        let vertices = raw
-            .iter()
-            .map(|&(x, y, z)| Point::new(x / s, y / s, z / s))
-            .collect();
-        let faces = vec![
-            [0, 11, 5],
-            [0, 5, 1],
-            [0, 1, 7],
-            [0, 7, 10],
-            [0, 10, 11],
-            [1, 5, 9],
-            [5, 11, 4],
-            [11, 10, 2],
-            [10, 7, 6],
-            [7, 1, 8],
-            [3, 9, 4],
-            [3, 4, 2],
-            [3, 2, 6],
-            [3, 6, 8],
-            [3, 8, 9],
-            [4, 9, 5],
-            [2, 4, 11],
-            [6, 2, 10],
-            [8, 6, 7],
-            [9, 8, 1],
-        ];
-        let m = TriMesh::new(vertices, faces).unwrap();
+        let m = crate::geometry::mesh::tests::icosphere(1.0, 0);
         assert!(m.signed_volume() > 0.0);
         m
     }
