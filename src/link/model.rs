@@ -466,23 +466,38 @@ pub fn estimate_link_model_from(
                     .map(|&f| (TrialKind::Finger(f), f.joints().to_vec())),
             )
             .collect();
-    for (kind, joints) in trials {
-        let traj = get(kind)?;
-        let g = to_global(traj, rf, &reference_palm)?;
-        for j in joints {
-            let level = if j.dof() == 1 {
-                Some(g.inverse().apply(&landmark(j.name())?))
-            } else {
-                None
-            };
-            let est = estimate_local(traj, kind.key(), j, rf, level)?;
-            // The child plate's reference positions, for the dorsal direction of the frames.
-            let (_, child) = marker_sets(j);
-            let plate: Vec<Point> = child
-                .iter()
-                .filter_map(|n| traj.get(n, rf))
-                .map(|p| g.apply(&p))
-                .collect();
+    // Trials are independent: estimate them in parallel (results are collected in trial
+    // order, so the model does not depend on the thread count; the first error in that order
+    // is reported).
+    use rayon::prelude::*;
+    type Estimated = Vec<(Joint, LocalEstimate, Registration, Vec<Point>)>;
+    let per_trial: Vec<Result<Estimated>> = trials
+        .par_iter()
+        .map(|(kind, joints)| -> Result<Estimated> {
+            let traj = get(*kind)?;
+            let g = to_global(traj, rf, &reference_palm)?;
+            let mut out = Vec::new();
+            for &j in joints {
+                let level = if j.dof() == 1 {
+                    Some(g.inverse().apply(&landmark(j.name())?))
+                } else {
+                    None
+                };
+                let est = estimate_local(traj, kind.key(), j, rf, level)?;
+                // The child plate's reference positions, for the dorsal direction of the frames.
+                let (_, child) = marker_sets(j);
+                let plate: Vec<Point> = child
+                    .iter()
+                    .filter_map(|n| traj.get(n, rf))
+                    .map(|p| g.apply(&p))
+                    .collect();
+                out.push((j, est, g, plate));
+            }
+            Ok(out)
+        })
+        .collect();
+    for r in per_trial {
+        for (j, est, g, plate) in r? {
             locals[j.index()] = Some((est, g, plate));
         }
     }
