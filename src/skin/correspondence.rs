@@ -686,7 +686,7 @@ mod tests {
     use crate::anatomy::Side;
     use crate::geometry::mesh::tests::cuboid;
     use crate::rng::Rng;
-    use crate::template::{load_base_hand, load_template};
+    use crate::template::load_base_hand;
     use nalgebra::Matrix3;
 
     fn base_hand() -> TriMesh {
@@ -967,69 +967,5 @@ mod tests {
         let mut broken = m.clone();
         broken.faces[3] = [0, 1, 77];
         assert!(msg(fit_landmarks(&broken, &lms, &[], &p)).contains("vertex 77"));
-    }
-
-    /// Release timings of the issue-5 speed goals; run with
-    /// `cargo test --release --lib skin::correspondence -- --ignored --nocapture`.
-    #[test]
-    #[ignore]
-    fn timing_base_hand_and_full_template() {
-        let t = load_template(Side::Right).unwrap();
-        let base = t.base.mesh.clone();
-        for (label, mesh, idx, pairs) in [
-            ("base hand", &base, spread(&base, 25), None),
-            (
-                "full template",
-                &t.mesh,
-                t.spec.landmarks.values().copied().collect(),
-                Some(t.spec.dimensions.values().copied().collect::<Vec<_>>()),
-            ),
-        ] {
-            let c = mesh.vertex_centroid();
-            let goal = TriMesh {
-                vertices: mesh
-                    .vertices
-                    .iter()
-                    .map(|p| {
-                        c + 1.07 * (p - c) + Vec3::new(0.0, 2.0 * ((p.x - c.x) / 40.0).sin(), 0.0)
-                    })
-                    .collect(),
-                faces: mesh.faces.clone(),
-            };
-            let lms = landmarks_on(&goal, &idx, 4.0);
-            let ds: Vec<DistanceConstraint> = match pairs {
-                Some(p) => p
-                    .iter()
-                    .map(|&[a, b]| DistanceConstraint {
-                        a,
-                        b,
-                        length_mm: (goal.vertices[a] - goal.vertices[b]).norm(),
-                        name: format!("{a}-{b}"),
-                    })
-                    .collect(),
-                None => distances_on(&goal, &spread(mesh, 22)),
-            };
-            let start = std::time::Instant::now();
-            let r = fit_landmarks(mesh, &lms, &ds, &FitParams::default()).unwrap();
-            let max_l = r
-                .landmark_residuals_mm
-                .iter()
-                .fold(0.0, |a: f64, &b| a.max(b));
-            let max_d = r
-                .distance_residuals_mm
-                .iter()
-                .fold(0.0, |a: f64, &b| a.max(b.abs()));
-            println!(
-                "{label}: {} faces, {} landmarks, {} dimensions: {:.3} s, {} iterations, \
-                 converged {}, max landmark residual {max_l:.2e} mm, max dimension residual \
-                 {max_d:.2e} mm",
-                mesh.n_faces(),
-                lms.len(),
-                ds.len(),
-                start.elapsed().as_secs_f64(),
-                r.iterations,
-                r.converged
-            );
-        }
     }
 }

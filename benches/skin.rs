@@ -1,0 +1,83 @@
+//! The landmark fit of issue 5 (Sumner & Popović energy with the seed paper's constraints) on
+//! the base hand (2314 faces) and on the full template (37,024 faces), the template's 31
+//! landmarks and 22 dimension pairs, toward a smooth non-affine deformation of the template.
+
+use criterion::{criterion_group, criterion_main, Criterion};
+use ergohand::anatomy::Side;
+use ergohand::geometry::{TriMesh, Vec3};
+use ergohand::skin::correspondence::{
+    fit_landmarks, DistanceConstraint, FitParams, LandmarkConstraint,
+};
+use ergohand::template::load_template;
+use std::hint::black_box;
+
+/// Targets: the mesh scaled by 7 % and bent by a 2 mm sine, landmarks 4 mm off along the normals.
+fn problem(
+    mesh: &TriMesh,
+    idx: &[usize],
+    pairs: &[[usize; 2]],
+) -> (Vec<LandmarkConstraint>, Vec<DistanceConstraint>) {
+    let c = mesh.vertex_centroid();
+    let goal = TriMesh {
+        vertices: mesh
+            .vertices
+            .iter()
+            .map(|p| c + 1.07 * (p - c) + Vec3::new(0.0, 2.0 * ((p.x - c.x) / 40.0).sin(), 0.0))
+            .collect(),
+        faces: mesh.faces.clone(),
+    };
+    let n = goal.vertex_normals();
+    let lms = idx
+        .iter()
+        .map(|&v| LandmarkConstraint {
+            vertex: v,
+            target: goal.vertices[v] + n[v] * 4.0,
+            offset_mm: 4.0,
+        })
+        .collect();
+    let ds = pairs
+        .iter()
+        .map(|&[a, b]| DistanceConstraint {
+            a,
+            b,
+            length_mm: (goal.vertices[a] - goal.vertices[b]).norm(),
+            name: format!("{a}-{b}"),
+        })
+        .collect();
+    (lms, ds)
+}
+
+fn skin(c: &mut Criterion) {
+    let t = load_template(Side::Right).unwrap();
+    let idx: Vec<usize> = t.spec.landmarks.values().copied().collect();
+    let pairs: Vec<[usize; 2]> = t.spec.dimensions.values().copied().collect();
+    let mut g = c.benchmark_group("skin_fit");
+    g.sample_size(10);
+    // The base hand's first 1159 vertices are the template's base vertices (Loop keeps indices);
+    // its landmarks: the template's that are base vertices, else a spread of base vertices.
+    let base = t.base.mesh.clone();
+    let nb = base.n_vertices();
+    let mut bidx: Vec<usize> = idx.iter().copied().filter(|&v| v < nb).collect();
+    bidx.extend(
+        (0..nb)
+            .step_by(nb / 25)
+            .take(25usize.saturating_sub(bidx.len())),
+    );
+    let bpairs: Vec<[usize; 2]> = pairs
+        .iter()
+        .copied()
+        .filter(|p| p[0] < nb && p[1] < nb)
+        .collect();
+    let (lb, db) = problem(&base, &bidx, &bpairs);
+    g.bench_function("base_hand_2314_faces", |b| {
+        b.iter(|| fit_landmarks(black_box(&base), &lb, &db, &FitParams::default()).unwrap())
+    });
+    let (lf, df) = problem(&t.mesh, &idx, &pairs);
+    g.bench_function("full_template_37k_faces", |b| {
+        b.iter(|| fit_landmarks(black_box(&t.mesh), &lf, &df, &FitParams::default()).unwrap())
+    });
+    g.finish();
+}
+
+criterion_group!(benches, skin);
+criterion_main!(benches);
