@@ -1,0 +1,5 @@
+//! The skin stage of the seed paper (sections 3.5 and 3.6): the template surface made homologous
+//! to the subject. [`simplify`] reduces the high-resolution template to the ~1,000-face mesh the
+//! landmark fit runs on (Garland & Heckbert quadric error metrics, landmark vertices kept).
+
+pub mod simplify;
