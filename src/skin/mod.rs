@@ -1,4 +1,10 @@
-//! The subject's skin in the reference posture (seed paper section 3.5): the simplified
-//! template fitted to the subject's landmarks and caliper dimensions.
+//! The skin stage of the seed paper (sections 3.5 and 3.6): the template surface made homologous
+//! to the subject.
+//!
+//! * [`simplify`] reduces the high-resolution template to the ~1,000-face mesh the landmark fit
+//!   runs on (Garland & Heckbert quadric error metrics, landmark vertices kept).
+//! * [`correspondence`] fits that mesh to the subject's landmarks and caliper dimensions
+//!   (Sumner & Popović's correspondence energy with the constraints of equation 2).
 
 pub mod correspondence;
+pub mod simplify;
