@@ -22,6 +22,7 @@ pub mod mocap;
 pub mod render;
 pub mod rng;
 pub mod skeleton;
+pub mod skin;
 pub mod synth;
 pub mod template;
 pub mod validate;
