@@ -1,6 +1,7 @@
 //! Geometry core: indexed triangle meshes in f64 millimetres, their topology, rigid and similarity
-//! registration (Horn 1987) and Loop subdivision.
+//! registration (Horn 1987), Loop subdivision and closest-point queries (AABB tree).
 
+pub mod closest_point;
 pub mod horn;
 pub mod loop_subdivision;
 pub mod mesh;

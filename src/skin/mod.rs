@@ -5,6 +5,9 @@
 //!   runs on (Garland & Heckbert quadric error metrics, landmark vertices kept).
 //! * [`correspondence`] fits that mesh to the subject's landmarks and caliper dimensions
 //!   (Sumner & Popović's correspondence energy with the constraints of equation 2).
+//! * [`transfer`] carries the fitted deformation back to the high-resolution template through
+//!   per-face frames (equation 3).
 
 pub mod correspondence;
 pub mod simplify;
+pub mod transfer;
