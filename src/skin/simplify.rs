@@ -485,65 +485,7 @@ mod tests {
     use rayon::prelude::*;
     use std::collections::HashMap;
 
-    /// Icosahedron split `level` times (each triangle into four), projected on a sphere.
-    fn icosphere(radius: f64, level: usize) -> TriMesh {
-        let t = (1.0 + 5f64.sqrt()) / 2.0;
-        let mut v: Vec<Vec3> = [
-            [-1., t, 0.],
-            [1., t, 0.],
-            [-1., -t, 0.],
-            [1., -t, 0.],
-            [0., -1., t],
-            [0., 1., t],
-            [0., -1., -t],
-            [0., 1., -t],
-            [t, 0., -1.],
-            [t, 0., 1.],
-            [-t, 0., -1.],
-            [-t, 0., 1.],
-        ]
-        .iter()
-        .map(|p| Vec3::new(p[0], p[1], p[2]).normalize())
-        .collect();
-        let mut f: Vec<[usize; 3]> = vec![
-            [0, 11, 5],
-            [0, 5, 1],
-            [0, 1, 7],
-            [0, 7, 10],
-            [0, 10, 11],
-            [1, 5, 9],
-            [5, 11, 4],
-            [11, 10, 2],
-            [10, 7, 6],
-            [7, 1, 8],
-            [3, 9, 4],
-            [3, 4, 2],
-            [3, 2, 6],
-            [3, 6, 8],
-            [3, 8, 9],
-            [4, 9, 5],
-            [2, 4, 11],
-            [6, 2, 10],
-            [8, 6, 7],
-            [9, 8, 1],
-        ];
-        for _ in 0..level {
-            let mut mid: HashMap<(usize, usize), usize> = HashMap::new();
-            let mut next = Vec::with_capacity(f.len() * 4);
-            for &[a, b, c] in &f {
-                let mut m = |p: usize, q: usize| {
-                    *mid.entry((p.min(q), p.max(q))).or_insert_with(|| {
-                        v.push((v[p] + v[q]).normalize());
-                        v.len() - 1
-                    })
-                };
-                let (ab, bc, ca) = (m(a, b), m(b, c), m(c, a));
-                next.extend([[a, ab, ca], [b, bc, ab], [c, ca, bc], [ab, bc, ca]]);
-            }
-            f = next;
-        }
-        TriMesh::new(v.iter().map(|p| Point::from(p * radius)).collect(), f).unwrap()
-    }
+    use crate::geometry::mesh::tests::icosphere;
 
     /// Closed box `[0,a]x[0,b]x[0,c]` whose six sides are `n x n` grids of right triangles
     /// (diagonals alternating), faces outward.
