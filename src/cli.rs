@@ -173,6 +173,8 @@ struct ReconstructReport {
     stages_not_built: Vec<&'static str>,
     timings_s: std::collections::BTreeMap<&'static str, f64>,
     warnings: Vec<String>,
+    landmark_residuals_mm: std::collections::BTreeMap<String, f64>,
+    dimension_residuals_mm: std::collections::BTreeMap<String, f64>,
 }
 
 /// `ergohand reconstruct SUBJECT_DIR --out OUT`: the pipeline of the seed paper. Today the link
@@ -191,13 +193,41 @@ pub fn reconstruct(subject_dir: &Path, out: &Path, log: &Log) -> Result<crate::l
     }
     create_dir(out)?;
     model.write(&out.join("link_model.json"))?;
+    // The skin (section 3.5 without 3.6 and without issue 10's posing yet).
+    let t1 = Instant::now();
+    let template = template::load_template(subject.hand)?;
+    let reference = subject.load_trial(crate::mocap::subject::TrialKind::Reference)?;
+    let skin = crate::skin::pipeline::fit_skin(
+        &template,
+        &reference,
+        &subject.dimensions,
+        subject.marker_offset_mm,
+    )?;
+    let t_skin = t1.elapsed().as_secs_f64();
+    obj::write_obj(
+        &out.join("skin_low.obj"),
+        &skin.low,
+        Units::Millimetres,
+        None,
+    )?;
+    obj::write_obj(&out.join("skin.obj"), &skin.high, Units::Millimetres, None)?;
+    let mut warnings = model.warnings.clone();
+    if !skin.converged {
+        warnings.push("skin: the landmark fit did not converge; see the residuals".into());
+    }
     let report = ReconstructReport {
         subject: subject.name.clone(),
         hand: subject.hand,
-        stages_run: vec!["link"],
-        stages_not_built: vec!["skin (issue 5)", "tet (issue 6)", "hand.glb (issue 7)"],
-        timings_s: [("link", t_link)].into_iter().collect(),
-        warnings: model.warnings.clone(),
+        stages_run: vec!["link", "skin"],
+        stages_not_built: vec![
+            "skin section 3.6 (issue 5)",
+            "tet (issue 6)",
+            "hand.glb (issue 7)",
+        ],
+        timings_s: [("link", t_link), ("skin", t_skin)].into_iter().collect(),
+        warnings,
+        landmark_residuals_mm: skin.landmark_residuals_mm.clone(),
+        dimension_residuals_mm: skin.dimension_residuals_mm.clone(),
     };
     let json = serde_json::to_string_pretty(&report).expect("serialisable");
     atomic::write_bytes_atomic(&out.join("report.json"), json.as_bytes())?;
@@ -207,13 +237,25 @@ pub fn reconstruct(subject_dir: &Path, out: &Path, log: &Log) -> Result<crate::l
         model.warnings.len(),
         out.join("link_model.json").display()
     ));
+    log.info(format!(
+        "skin: {} + {} faces fitted in {:.2} s -> {}",
+        skin.low.n_faces(),
+        skin.high.n_faces(),
+        t_skin,
+        out.join("skin.obj").display()
+    ));
     Ok(model)
 }
 
 /// `ergohand validate SUBJECT_DIR --model OUT [--report DIR]`: today the link model against
 /// `truth.json` (per-joint centre and axis errors, link lengths) into `DIR/metrics.json`, and a
 /// table on stdout.
-pub fn validate(subject_dir: &Path, model: &Path, report: &Path, log: &Log) -> Result<()> {
+pub fn validate(
+    subject_dir: &Path,
+    model: &Path,
+    report: &Path,
+    log: &Log,
+) -> Result<(crate::validate::LinkAccuracy, crate::validate::SurfaceError)> {
     let truth = subject_dir.join("truth.json");
     if !truth.exists() {
         return Err(Error::input(
@@ -222,8 +264,13 @@ pub fn validate(subject_dir: &Path, model: &Path, report: &Path, log: &Log) -> R
         ));
     }
     let acc = crate::validate::link_accuracy(&model.join("link_model.json"), &truth)?;
+    let surface = crate::validate::surface_error(
+        &model.join("skin.obj"),
+        &subject_dir.join("reference.ply"),
+    )?;
     create_dir(report)?;
-    let json = serde_json::to_string_pretty(&acc).expect("serialisable");
+    let json = serde_json::to_string_pretty(&serde_json::json!({"link": acc, "surface": surface}))
+        .expect("serialisable");
     atomic::write_bytes_atomic(&report.join("metrics.json"), json.as_bytes())?;
     if !log.quiet() {
         println!("joint    centre error (mm)   axis error (deg)");
@@ -234,12 +281,16 @@ pub fn validate(subject_dir: &Path, model: &Path, report: &Path, log: &Log) -> R
                 .unwrap_or_else(|| "-".into());
             println!("{:8} {:>10.2}          {:>8}", e.joint, e.centre_mm, axis);
         }
+        println!(
+            "skin.obj to reference.ply: mean {:.2} mm, SD {:.2}, 95th percentile {:.2}, max {:.2} mm over {} vertices",
+            surface.mean_mm, surface.sd_mm, surface.p95_mm, surface.max_mm, surface.n
+        );
         println!("link         estimated    true (mm)");
         for (k, (m, t)) in &acc.link_lengths {
             println!("{k:12} {m:>8.2} {t:>10.2}");
         }
     }
-    Ok(())
+    Ok((acc, surface))
 }
 
 /// `ergohand validate --suite DIR`: every subject of `DIR/suite.toml` is generated (when its
@@ -351,14 +402,10 @@ pub fn demo(out: &Path, log: &Log) -> Result<()> {
     let t2 = Instant::now();
     let model = reconstruct(&subject_dir, &model_dir, &Log::new(true))?;
     let link_s = t2.elapsed().as_secs_f64();
-    validate(&subject_dir, &model_dir, &report_dir, &Log::new(true))?;
-    let acc = crate::validate::link_accuracy(
-        &model_dir.join("link_model.json"),
-        &subject_dir.join("truth.json"),
-    )?;
+    let (acc, surface) = validate(&subject_dir, &model_dir, &report_dir, &Log::new(true))?;
     if !log.quiet() {
         println!(
-            "ergohand demo: stages run: template, synth, link model, validation of the link model"
+            "ergohand demo: stages run: template, synth, link model, skin (section 3.5), validation"
         );
         for h in &t.hands {
             let (lo, hi) = h.mesh.bounds().expect("non-empty template");
@@ -408,6 +455,13 @@ pub fn demo(out: &Path, log: &Log) -> Result<()> {
             e1[e1.len() / 2],
             e1.last().copied().unwrap_or(0.0)
         );
+        println!(
+            "  skin: homologous to the template ({} faces); distance to the CT-like reference: mean {:.2} mm, 95th percentile {:.2} mm, max {:.2} mm",
+            t.hands[0].mesh.n_faces(),
+            surface.mean_mm,
+            surface.p95_mm,
+            surface.max_mm
+        );
         println!("  files:");
         for f in &t.files {
             println!("    {}", f.display());
@@ -417,6 +471,7 @@ pub fn demo(out: &Path, log: &Log) -> Result<()> {
             subject_dir.display()
         );
         println!("    {}", model_dir.join("link_model.json").display());
+        println!("    {}", model_dir.join("skin.obj").display());
         println!("    {}", report_dir.join("metrics.json").display());
         println!(
             "  done in {:.1} s; open {}",
@@ -424,7 +479,7 @@ pub fn demo(out: &Path, log: &Log) -> Result<()> {
             out.join("template").join("template-right.png").display()
         );
         println!(
-            "  not built yet: skin, tetrahedral mesh, pose, grasp, report pictures (see README.md)"
+            "  not built yet: skin section 3.6, tetrahedral mesh, pose, grasp, report pictures (see README.md)"
         );
     }
     Ok(())

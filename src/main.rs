@@ -146,7 +146,7 @@ fn main() -> ExitCode {
         } => {
             let model = model.unwrap_or_else(|| subject_dir.join("out"));
             let report = report.unwrap_or_else(|| model.join("report"));
-            cli::validate(&subject_dir, &model, &report, &log)
+            cli::validate(&subject_dir, &model, &report, &log).map(|_| ())
         }
         Command::Pose { .. } => return not_built("pose", 7),
         Command::Grasp { .. } => return not_built("grasp", 8),

@@ -9,5 +9,6 @@
 //!   per-face frames (equation 3).
 
 pub mod correspondence;
+pub mod pipeline;
 pub mod simplify;
 pub mod transfer;

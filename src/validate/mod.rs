@@ -3,5 +3,7 @@
 //! calls back into the stages.
 
 pub mod link_accuracy;
+pub mod surface_error;
 
 pub use link_accuracy::{link_accuracy, JointError, LinkAccuracy};
+pub use surface_error::{surface_error, SurfaceError};
