@@ -48,6 +48,19 @@ impl Error {
         Error::Invalid(msg.into())
     }
 
+    /// A TOML parse error of `text` (read from `path`) as one line: the parser's message with
+    /// the line it points at.
+    pub fn toml(path: impl AsRef<Path>, text: &str, e: &toml::de::Error) -> Self {
+        let line = e
+            .span()
+            .map(|s| {
+                let n = text[..s.start.min(text.len())].matches('\n').count() + 1;
+                format!(" (line {n})")
+            })
+            .unwrap_or_default();
+        Error::input(path, e.message().replace('\n', " ") + &line)
+    }
+
     /// Attach a file to an error raised without one (e.g. a mesh check on a file just read).
     pub fn in_file(self, path: impl AsRef<Path>) -> Self {
         match self {

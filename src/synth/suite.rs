@@ -38,18 +38,7 @@ pub fn read_suite(path: &Path) -> Result<Vec<(String, SynthOptions)>> {
 
 /// Parse a suite file's text (errors name `path`, the key and the line).
 pub fn parse_suite(text: &str, path: &Path) -> Result<Vec<(String, SynthOptions)>> {
-    let file: SuiteFile = toml::from_str(text).map_err(|e| {
-        let line = e
-            .span()
-            .map(|s| {
-                format!(
-                    " (line {})",
-                    text[..s.start.min(text.len())].matches('\n').count() + 1
-                )
-            })
-            .unwrap_or_default();
-        Error::input(path, e.message().replace('\n', " ") + &line)
-    })?;
+    let file: SuiteFile = toml::from_str(text).map_err(|e| Error::toml(path, text, &e))?;
     let mut out: Vec<(String, SynthOptions)> = Vec::new();
     for e in file.subject {
         if out.iter().any(|(n, _)| *n == e.name) {

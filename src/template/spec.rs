@@ -60,12 +60,7 @@ const HEADER: &str =
 impl TemplateSpec {
     /// Parse a spec file's text; errors name `path` and the key.
     pub fn from_toml(text: &str, path: &Path) -> Result<TemplateSpec> {
-        let spec: TemplateSpec = toml::from_str(text).map_err(|e| {
-            Error::input(
-                path,
-                e.message().replace('\n', " ") + &line_of(text, e.span()),
-            )
-        })?;
+        let spec: TemplateSpec = toml::from_str(text).map_err(|e| Error::toml(path, text, &e))?;
         Ok(spec)
     }
 
@@ -89,15 +84,6 @@ impl TemplateSpec {
             Side::Left => &self.left,
         }
     }
-}
-
-/// " at line N" for a TOML error span.
-fn line_of(text: &str, span: Option<std::ops::Range<usize>>) -> String {
-    span.map(|s| {
-        let line = text[..s.start.min(text.len())].matches('\n').count() + 1;
-        format!(" (line {line})")
-    })
-    .unwrap_or_default()
 }
 
 impl HandSpec {
