@@ -79,5 +79,60 @@ fn skin(c: &mut Criterion) {
     g.finish();
 }
 
-criterion_group!(benches, skin);
+/// The whole skin stage on a simulated subject in a varied posture (issue 10's goal: under
+/// 1 s at the default resolution): pre-alignment, posture fit, posing, QEM, landmark fit,
+/// transfer; the posture fit alone; and the stage at full resolution (issue 5: fit under 3 s).
+fn skin_stage(c: &mut Criterion) {
+    use ergohand::skin::pipeline::{fit_skin, FitResolution, SkinOptions};
+    use ergohand::synth::{simulate, Posture, Preset, SynthOptions};
+    let s = simulate(&SynthOptions {
+        duration_s: Some(20.0),
+        voxel_mm: 2.0,
+        posture: Posture::Varied,
+        ..SynthOptions::new(104, Preset::Typical)
+    })
+    .unwrap();
+    let t = load_template(s.subject.hand).unwrap();
+    let model = ergohand::link::model::estimate_link_model_from(
+        s.subject.hand,
+        s.subject.reference_frame,
+        &s.trials,
+    )
+    .unwrap();
+    let run = |opts: &SkinOptions| {
+        fit_skin(
+            &t,
+            &s.trials["reference"],
+            &s.subject.dimensions,
+            s.subject.marker_offset_mm,
+            Some(&model.skeleton),
+            opts,
+        )
+        .unwrap()
+    };
+    let mut g = c.benchmark_group("skin_stage");
+    g.sample_size(10);
+    g.bench_function("default_low_resolution", |b| {
+        b.iter(|| run(black_box(&SkinOptions::default())))
+    });
+    g.bench_function("full_resolution", |b| {
+        b.iter(|| {
+            run(black_box(&SkinOptions {
+                resolution: FitResolution::Full,
+                ..SkinOptions::default()
+            }))
+        })
+    });
+    g.bench_function("without_posing", |b| {
+        b.iter(|| {
+            run(black_box(&SkinOptions {
+                pose_template: false,
+                ..SkinOptions::default()
+            }))
+        })
+    });
+    g.finish();
+}
+
+criterion_group!(benches, skin, skin_stage);
 criterion_main!(benches);

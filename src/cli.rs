@@ -4,6 +4,7 @@
 use crate::anatomy::Side;
 use crate::error::{Error, Result};
 use crate::io::{atomic, obj, Units};
+use crate::skin::pipeline::SkinOptions;
 use crate::synth::{self, SynthOptions};
 use crate::template::{self, TemplateHand};
 use std::path::{Path, PathBuf};
@@ -173,13 +174,66 @@ struct ReconstructReport {
     stages_not_built: Vec<&'static str>,
     timings_s: std::collections::BTreeMap<&'static str, f64>,
     warnings: Vec<String>,
-    landmark_residuals_mm: std::collections::BTreeMap<String, f64>,
-    dimension_residuals_mm: std::collections::BTreeMap<String, f64>,
+    skin: SkinSummary,
 }
 
-/// `ergohand reconstruct SUBJECT_DIR --out OUT`: the pipeline of the seed paper. Today the link
-/// model (issue 4): `OUT/link_model.json` and `OUT/report.json`.
+/// The skin stage's part of `report.json`.
+#[derive(serde::Serialize)]
+struct SkinSummary {
+    fit_resolution: crate::skin::pipeline::FitResolution,
+    template_posed: bool,
+    centre_weight: f64,
+    iterations: usize,
+    converged: bool,
+    /// The template's posture found before the fit, degrees per joint `[flexion, abduction,
+    /// axial]` (1-DOF joints: `[angle, 0, 0]`), relative to the template's reference posture.
+    posture_deg: Option<std::collections::BTreeMap<String, [f64; 3]>>,
+    posture_direction_residual_deg: Option<std::collections::BTreeMap<String, f64>>,
+    landmark_residuals_mm: std::collections::BTreeMap<String, f64>,
+    dimension_residuals_mm: std::collections::BTreeMap<String, f64>,
+    centre_residuals_mm: std::collections::BTreeMap<String, f64>,
+    /// Section 3.6: shift of each 1-DOF centre along its axis onto the skin, mm.
+    section_3_6_shift_mm: std::collections::BTreeMap<String, f64>,
+    inverted_faces: usize,
+    degenerate_faces: usize,
+}
+
+/// Skin options from the command line's words, checked.
+pub fn skin_options(
+    resolution: &str,
+    pose_template: bool,
+    centre_weight: f64,
+) -> Result<SkinOptions> {
+    if !(centre_weight.is_finite() && centre_weight >= 0.0) {
+        return Err(Error::invalid(format!(
+            "--centre-weight {centre_weight}: give a finite weight >= 0 (0 turns the centre terms off)"
+        )));
+    }
+    Ok(SkinOptions {
+        resolution: resolution
+            .parse()
+            .map_err(|e: Error| Error::invalid(format!("--fit-resolution: {e}")))?,
+        pose_template,
+        centre_weight,
+        ..SkinOptions::default()
+    })
+}
+
+/// `ergohand reconstruct SUBJECT_DIR --out OUT` with the default skin options.
 pub fn reconstruct(subject_dir: &Path, out: &Path, log: &Log) -> Result<crate::link::LinkModel> {
+    reconstruct_with(subject_dir, out, &SkinOptions::default(), log)
+}
+
+/// `ergohand reconstruct SUBJECT_DIR --out OUT`: the pipeline of the seed paper as far as it is
+/// built: the link model (section 3.4), the skin (3.5, with issue 10's posing and centre terms),
+/// section 3.6 applied to the link model; writes `link_model.json`, `skin_low.obj`, `skin.obj`
+/// and `report.json`. Nothing is written unless every stage succeeds.
+pub fn reconstruct_with(
+    subject_dir: &Path,
+    out: &Path,
+    opts: &SkinOptions,
+    log: &Log,
+) -> Result<crate::link::LinkModel> {
     let t0 = Instant::now();
     let subject = crate::mocap::subject::Subject::load(subject_dir)?;
     log.info(format!(
@@ -191,9 +245,6 @@ pub fn reconstruct(subject_dir: &Path, out: &Path, log: &Log) -> Result<crate::l
     for w in &model.warnings {
         log.warn(w);
     }
-    create_dir(out)?;
-    model.write(&out.join("link_model.json"))?;
-    // The skin (section 3.5 without 3.6 and without issue 10's posing yet).
     let t1 = Instant::now();
     let template = template::load_template(subject.hand)?;
     let reference = subject.load_trial(crate::mocap::subject::TrialKind::Reference)?;
@@ -202,8 +253,20 @@ pub fn reconstruct(subject_dir: &Path, out: &Path, log: &Log) -> Result<crate::l
         &reference,
         &subject.dimensions,
         subject.marker_offset_mm,
+        Some(&model.skeleton),
+        opts,
     )?;
+    // Section 3.6: 1-DOF centres onto the skin's cross-section.
+    let pairs = crate::skin::section_centre::edge_pairs(&template)?;
+    let (centred, shifts) =
+        crate::skin::section_centre::centre_on_cross_section(&model.skeleton, &skin.high, &pairs);
+    let model = model.with_skin_centres(&centred, &shifts);
     let t_skin = t1.elapsed().as_secs_f64();
+    for w in &skin.warnings {
+        log.warn(w);
+    }
+    create_dir(out)?;
+    model.write(&out.join("link_model.json"))?;
     obj::write_obj(
         &out.join("skin_low.obj"),
         &skin.low,
@@ -212,22 +275,42 @@ pub fn reconstruct(subject_dir: &Path, out: &Path, log: &Log) -> Result<crate::l
     )?;
     obj::write_obj(&out.join("skin.obj"), &skin.high, Units::Millimetres, None)?;
     let mut warnings = model.warnings.clone();
-    if !skin.converged {
-        warnings.push("skin: the landmark fit did not converge; see the residuals".into());
-    }
+    warnings.extend(skin.warnings.iter().cloned());
     let report = ReconstructReport {
         subject: subject.name.clone(),
         hand: subject.hand,
-        stages_run: vec!["link", "skin"],
-        stages_not_built: vec![
-            "skin section 3.6 (issue 5)",
-            "tet (issue 6)",
-            "hand.glb (issue 7)",
-        ],
+        stages_run: vec!["link", "skin", "section 3.6"],
+        stages_not_built: vec!["tet (issue 6)", "hand.glb (issue 7)"],
         timings_s: [("link", t_link), ("skin", t_skin)].into_iter().collect(),
         warnings,
-        landmark_residuals_mm: skin.landmark_residuals_mm.clone(),
-        dimension_residuals_mm: skin.dimension_residuals_mm.clone(),
+        skin: SkinSummary {
+            fit_resolution: opts.resolution,
+            template_posed: skin.posture.is_some(),
+            centre_weight: opts.centre_weight,
+            iterations: skin.iterations,
+            converged: skin.converged,
+            posture_deg: skin.posture.as_ref().map(|p| {
+                crate::anatomy::Joint::ALL
+                    .iter()
+                    .map(|j| {
+                        (
+                            j.name().to_string(),
+                            p.pose.angles[j.index()].map(f64::to_degrees),
+                        )
+                    })
+                    .collect()
+            }),
+            posture_direction_residual_deg: skin
+                .posture
+                .as_ref()
+                .map(|p| p.direction_residual_deg.clone()),
+            landmark_residuals_mm: skin.landmark_residuals_mm.clone(),
+            dimension_residuals_mm: skin.dimension_residuals_mm.clone(),
+            centre_residuals_mm: skin.centre_residuals_mm.clone(),
+            section_3_6_shift_mm: shifts,
+            inverted_faces: skin.inverted_faces,
+            degenerate_faces: skin.degenerate_faces,
+        },
     };
     let json = serde_json::to_string_pretty(&report).expect("serialisable");
     atomic::write_bytes_atomic(&out.join("report.json"), json.as_bytes())?;
@@ -247,15 +330,49 @@ pub fn reconstruct(subject_dir: &Path, out: &Path, log: &Log) -> Result<crate::l
     Ok(model)
 }
 
-/// `ergohand validate SUBJECT_DIR --model OUT [--report DIR]`: today the link model against
-/// `truth.json` (per-joint centre and axis errors, link lengths) into `DIR/metrics.json`, and a
-/// table on stdout.
-pub fn validate(
+/// What `validate` measured.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct Validation {
+    /// Joint centres, axes and link lengths against `truth.json`.
+    pub link: crate::validate::LinkAccuracy,
+    /// `skin.obj` against `reference.ply`.
+    pub surface: crate::validate::SurfaceError,
+    /// The caliper dimensions measured on `skin.obj`.
+    pub dimensions: crate::validate::DimensionAccuracy,
+}
+
+/// The dimensions of `subject_dir` measured on `model/skin.obj`, with the truth when given.
+fn measure_dimensions(
     subject_dir: &Path,
     model: &Path,
-    report: &Path,
-    log: &Log,
-) -> Result<(crate::validate::LinkAccuracy, crate::validate::SurfaceError)> {
+    truth: Option<&Path>,
+) -> Result<crate::validate::DimensionAccuracy> {
+    let subject = crate::mocap::subject::Subject::load(subject_dir)?;
+    let skin_path = model.join("skin.obj");
+    let skin = obj::read_obj(&skin_path, Units::Millimetres)?;
+    let true_dims = match truth {
+        Some(p) => {
+            let text = std::fs::read_to_string(p).map_err(|e| Error::io(p, e))?;
+            let t: synth::Truth = serde_json::from_str(&text)
+                .map_err(|e| Error::input(p, format!("not a truth file: {e}")))?;
+            Some(t.dimensions)
+        }
+        None => None,
+    };
+    crate::validate::dimension_accuracy(
+        &skin,
+        &skin_path,
+        subject.hand,
+        &subject.dimensions,
+        true_dims.as_ref(),
+    )
+}
+
+/// `ergohand validate SUBJECT_DIR --model OUT [--report DIR]`: the link model against
+/// `truth.json` (per-joint centre and axis errors, link lengths), `skin.obj` against
+/// `reference.ply`, and the caliper dimensions measured on `skin.obj`, into
+/// `DIR/metrics.json`, and tables on stdout.
+pub fn validate(subject_dir: &Path, model: &Path, report: &Path, log: &Log) -> Result<Validation> {
     let truth = subject_dir.join("truth.json");
     if !truth.exists() {
         return Err(Error::input(
@@ -268,10 +385,16 @@ pub fn validate(
         &model.join("skin.obj"),
         &subject_dir.join("reference.ply"),
     )?;
+    let dims = measure_dimensions(subject_dir, model, Some(&truth))?;
     create_dir(report)?;
-    let json = serde_json::to_string_pretty(&serde_json::json!({"link": acc, "surface": surface}))
-        .expect("serialisable");
+    let v = Validation {
+        link: acc,
+        surface,
+        dimensions: dims,
+    };
+    let json = serde_json::to_string_pretty(&v).expect("serialisable");
     atomic::write_bytes_atomic(&report.join("metrics.json"), json.as_bytes())?;
+    let (acc, surface, dims) = (&v.link, &v.surface, &v.dimensions);
     if !log.quiet() {
         println!("joint    centre error (mm)   axis error (deg)");
         for e in &acc.joints {
@@ -289,8 +412,23 @@ pub fn validate(
         for (k, (m, t)) in &acc.link_lengths {
             println!("{k:12} {m:>8.2} {t:>10.2}");
         }
+        println!("dimension                     on skin    given     true (mm)");
+        for e in &dims.dimensions {
+            let t = e
+                .true_mm
+                .map(|t| format!("{t:.2}"))
+                .unwrap_or_else(|| "-".into());
+            println!(
+                "{:28} {:>8.3} {:>8.3} {:>8}",
+                e.name, e.skin_mm, e.given_mm, t
+            );
+        }
+        println!(
+            "dimensions on skin - given: mean {:+.3} mm, SD {:.3} mm",
+            dims.mean_vs_given_mm, dims.sd_vs_given_mm
+        );
     }
-    Ok((acc, surface))
+    Ok(v)
 }
 
 /// `ergohand validate --suite DIR`: every subject of `DIR/suite.toml` is generated (when its
@@ -316,7 +454,8 @@ pub fn validate_suite(dir: &Path, report: &Path, log: &Log) -> Result<()> {
             crate::validate::link_accuracy(&out.join("link_model.json"), &sdir.join("truth.json"))?;
         let surf =
             crate::validate::surface_error(&out.join("skin.obj"), &sdir.join("reference.ply"))?;
-        rows.push((name.clone(), opts.clone(), acc, surf, secs));
+        let dims = measure_dimensions(&sdir, &out, Some(&sdir.join("truth.json")))?;
+        rows.push((name.clone(), opts.clone(), acc, surf, dims, secs));
         pb.inc(1);
     }
     pb.finish_and_clear();
@@ -334,10 +473,10 @@ pub fn validate_suite(dir: &Path, report: &Path, log: &Log) -> Result<()> {
         }
     };
     let mut md = String::from(
-        "# Link model and skin accuracy on the validation suite\n\nGenerated by `ergohand validate --suite validation/`. Errors against each simulated subject's truth.json.\n\n| subject | preset | hand | posture | median centre error 3-DOF (mm) | median centre error 1-DOF (mm) | median axis error (deg) | max centre error (mm) | skin to reference mean / max (mm) | reconstruct time (s) |\n|---|---|---|---|---|---|---|---|---|---|\n",
+        "# Link model and skin accuracy on the validation suite\n\nGenerated by `ergohand validate --suite validation/`. Errors against each simulated subject's truth.json.\n\n| subject | preset | hand | posture | median centre error 3-DOF (mm) | median centre error 1-DOF (mm) | median axis error (deg) | max centre error (mm) | skin to reference mean / max (mm) | dimensions on skin − given, mean ± SD (mm) | reconstruct time (s) |\n|---|---|---|---|---|---|---|---|---|---|---|\n",
     );
     let mut summary = serde_json::Map::new();
-    for (name, o, acc, surf, secs) in &rows {
+    for (name, o, acc, surf, dims, secs) in &rows {
         let c3: Vec<f64> = acc
             .joints
             .iter()
@@ -353,7 +492,7 @@ pub fn validate_suite(dir: &Path, report: &Path, log: &Log) -> Result<()> {
         let ax: Vec<f64> = acc.joints.iter().filter_map(|e| e.axis_deg).collect();
         let max = acc.joints.iter().map(|e| e.centre_mm).fold(0.0, f64::max);
         md.push_str(&format!(
-            "| {name} | {} | {} | {:?} | {:.2} | {:.2} | {:.2} | {:.2} | {:.2} / {:.2} | {:.2} |\n",
+            "| {name} | {} | {} | {:?} | {:.2} | {:.2} | {:.2} | {:.2} | {:.2} / {:.2} | {:+.3} ± {:.3} | {:.2} |\n",
             o.preset.name(),
             o.hand,
             o.posture,
@@ -363,11 +502,13 @@ pub fn validate_suite(dir: &Path, report: &Path, log: &Log) -> Result<()> {
             max,
             surf.mean_mm,
             surf.max_mm,
+            dims.mean_vs_given_mm,
+            dims.sd_vs_given_mm,
             secs
         ));
         summary.insert(
             name.clone(),
-            serde_json::json!({"preset": o.preset.name(), "median_centre_3dof_mm": median(c3), "median_centre_1dof_mm": median(c1), "median_axis_deg": median(ax), "max_centre_mm": max, "skin": surf, "seconds": secs, "joints": acc.joints}),
+            serde_json::json!({"preset": o.preset.name(), "median_centre_3dof_mm": median(c3), "median_centre_1dof_mm": median(c1), "median_axis_deg": median(ax), "max_centre_mm": max, "skin": surf, "dimensions": dims, "seconds": secs, "joints": acc.joints}),
         );
     }
     create_dir(report)?;
@@ -406,7 +547,8 @@ pub fn demo(out: &Path, log: &Log) -> Result<()> {
     let t2 = Instant::now();
     let model = reconstruct(&subject_dir, &model_dir, &Log::new(true))?;
     let link_s = t2.elapsed().as_secs_f64();
-    let (acc, surface) = validate(&subject_dir, &model_dir, &report_dir, &Log::new(true))?;
+    let v = validate(&subject_dir, &model_dir, &report_dir, &Log::new(true))?;
+    let (acc, surface) = (&v.link, &v.surface);
     if !log.quiet() {
         println!(
             "ergohand demo: stages run: template, synth, link model, skin (section 3.5), validation"

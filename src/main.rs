@@ -64,6 +64,17 @@ enum Command {
         subject_dir: PathBuf,
         #[arg(long)]
         out: PathBuf,
+        /// Mesh the skin's landmark fit runs on: `low` (the ~1,000-face QEM mesh, the paper's
+        /// way, then transferred) or `full` (the 37,024-face template directly).
+        #[arg(long, default_value = "low")]
+        fit_resolution: String,
+        /// Fit the template as it stands instead of posing it onto the link model first
+        /// (issue 10, step 2; for comparison).
+        #[arg(long)]
+        no_template_posing: bool,
+        /// Weight of the joint-centre terms of the skin fit (issue 10, step 3); 0 leaves them out.
+        #[arg(long, default_value_t = ergohand::skin::pipeline::CENTRE_WEIGHT)]
+        centre_weight: f64,
     },
     /// Compare a reconstruction with reference.ply / truth.json and write a report.
     Validate {
@@ -125,9 +136,15 @@ fn main() -> ExitCode {
             force,
         } => cli::synth_options(seed, &preset, &hand, &posture, duration)
             .and_then(|opts| cli::synth(&opts, &out, force, &log)),
-        Command::Reconstruct { subject_dir, out } => {
-            cli::reconstruct(&subject_dir, &out, &log).map(|_| ())
-        }
+        Command::Reconstruct {
+            subject_dir,
+            out,
+            fit_resolution,
+            no_template_posing,
+            centre_weight,
+        } => cli::skin_options(&fit_resolution, !no_template_posing, centre_weight)
+            .and_then(|opts| cli::reconstruct_with(&subject_dir, &out, &opts, &log))
+            .map(|_| ()),
         Command::Validate {
             subject_dir,
             report,

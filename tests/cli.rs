@@ -150,7 +150,63 @@ fn reconstruct_and_validate_a_simulated_subject() {
         "-q",
     ]);
     assert!(v.status.success(), "{}", stderr(&v));
-    assert!(out.join("rep/metrics.json").is_file());
+    let metrics: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("rep/metrics.json")).unwrap())
+            .unwrap();
+    // Every given dimension is met on the skin (issue 5: |mean| <= 0.02, SD <= 0.05 mm).
+    let dims = &metrics["dimensions"];
+    assert_eq!(dims["dimensions"].as_array().unwrap().len(), 22);
+    assert!(
+        dims["mean_vs_given_mm"].as_f64().unwrap().abs() <= 0.02,
+        "{dims}"
+    );
+    assert!(dims["sd_vs_given_mm"].as_f64().unwrap() <= 0.05, "{dims}");
+    let report: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap();
+    assert_eq!(report["skin"]["inverted_faces"], 0);
+    assert!(report["skin"]["posture_deg"]["I_MCP"].is_array());
+    assert!(report["skin"]["section_3_6_shift_mm"]["I_PIP"].is_f64());
+
+    // Bad skin options are refused before anything is written.
+    let o2 = dir.path().join("OUT2");
+    for (flag, needle) in [
+        ("--fit-resolution=medium", "medium"),
+        ("--centre-weight=-1", "--centre-weight"),
+    ] {
+        let r = ergohand(&["reconstruct", s, "--out", o2.to_str().unwrap(), flag]);
+        assert_eq!(r.status.code(), Some(1), "{flag}");
+        assert!(error_line(&r).contains(needle), "{}", stderr(&r));
+        assert!(!o2.exists());
+    }
+    // The full-resolution fit: a skin as close to the CT-like reference as the default's.
+    let r = ergohand(&[
+        "reconstruct",
+        s,
+        "--out",
+        o2.to_str().unwrap(),
+        "--fit-resolution=full",
+        "-q",
+    ]);
+    assert!(r.status.success(), "{}", stderr(&r));
+    let rep2 = o2.join("rep");
+    let v = ergohand(&[
+        "validate",
+        s,
+        "--model",
+        o2.to_str().unwrap(),
+        "--report",
+        rep2.to_str().unwrap(),
+        "-q",
+    ]);
+    assert!(v.status.success(), "{}", stderr(&v));
+    let surface = |p: &Path| -> f64 {
+        let m: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(p.join("metrics.json")).unwrap())
+                .unwrap();
+        m["surface"]["mean_mm"].as_f64().unwrap()
+    };
+    let (low, full) = (surface(&out.join("rep")), surface(&rep2));
+    assert!(low < 1.0 && full < 1.0, "low {low} full {full}");
 
     // A trial whose palm marker is unlabelled: the error names the trial and the marker.
     let toml = std::fs::read_to_string(subj.join("subject.toml")).unwrap();

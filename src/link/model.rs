@@ -78,6 +78,11 @@ pub struct JointDiagnostics {
     pub range_of_motion_deg: f64,
     /// Every estimator's centre (global frame), for comparison.
     pub alternatives: BTreeMap<String, [f64; 3]>,
+    /// 1-DOF joints after the skin stage: how far section 3.6 moved the centre along the axis
+    /// onto the skin's cross-section, mm (the centre before it is in `alternatives` as
+    /// `motion`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub centre_shift_on_skin_mm: Option<f64>,
     /// Warnings about this joint.
     pub warnings: Vec<String>,
 }
@@ -397,6 +402,7 @@ fn estimate_local(
             condition,
             range_of_motion_deg: rom,
             alternatives: BTreeMap::new(),
+            centre_shift_on_skin_mm: None,
             warnings: warnings.clone(),
         },
     })
@@ -633,6 +639,29 @@ impl LinkModel {
             warnings: &self.warnings,
         })
         .expect("serialisable")
+    }
+
+    /// Section 3.6 of the seed paper applied: every 1-DOF centre replaced by the one of
+    /// `skeleton` (from [`crate::skin::section_centre::centre_on_cross_section`]) with its
+    /// shift recorded in the diagnostics; the centre from motion alone is kept among the
+    /// alternatives as `motion`.
+    pub fn with_skin_centres(
+        mut self,
+        skeleton: &Skeleton,
+        shifts: &BTreeMap<String, f64>,
+    ) -> Self {
+        for e in &mut self.joints {
+            if let Some(&t) = shifts.get(e.joint.name()) {
+                let c = e.centre;
+                e.diagnostics
+                    .alternatives
+                    .insert("motion".into(), [c.x, c.y, c.z]);
+                e.diagnostics.centre_shift_on_skin_mm = Some(t);
+                e.centre = skeleton.centre(e.joint);
+            }
+        }
+        self.skeleton = skeleton.clone();
+        self
     }
 
     /// Write `link_model.json` atomically.

@@ -97,6 +97,33 @@ pub fn posed_tips(sk: &Skeleton, transforms: &[Isometry3<f64>]) -> [Point; 5] {
     out
 }
 
+/// A skeleton rebuilt after a rigid posture change: each joint's frame rotated with the link on
+/// its parent side (where a joint's axes live), centres moved likewise.
+pub fn posed_skeleton(sk: &Skeleton, transforms: &[Isometry3<f64>]) -> Skeleton {
+    let mut out = sk.clone();
+    for j in Joint::ALL {
+        let t = transforms[j.parent_link().index()];
+        out.joints[j.index()] = super::JointFrame {
+            centre: t * sk.centre(j),
+            frame: t.rotation.to_rotation_matrix() * sk.joint(j).frame,
+        };
+    }
+    for f in crate::anatomy::Finger::ALL {
+        out.tips[f as usize] = transforms[f.links()[2].index()] * sk.tips[f as usize];
+    }
+    // A 3-DOF joint's frame follows the child link's long axis in the new posture (its centre is
+    // what the truth records; the frame only orients reports).
+    for j in Joint::ALL {
+        if j.dof() == 3 {
+            let z = out.distal_end(j) - out.centre(j);
+            if let Ok(fr) = super::frame_from_long_axis(&z, &out.joint(j).y()) {
+                out.joints[j.index()].frame = fr;
+            }
+        }
+    }
+    out
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

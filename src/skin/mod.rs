@@ -10,5 +10,7 @@
 
 pub mod correspondence;
 pub mod pipeline;
+pub mod posture_fit;
+pub mod section_centre;
 pub mod simplify;
 pub mod transfer;

@@ -1,20 +1,93 @@
-//! The skin stage end to end (seed paper section 3.5), as far as it is built: pre-alignment of
-//! the template by the palm landmarks (Horn), QEM simplification keeping every landmark and
-//! dimension vertex, the landmark fit with the caliper dimensions, and the transfer back to the
-//! high-resolution template (equation 3). Section 3.6 and issue 10's posing are not done yet.
+//! The skin stage end to end (seed paper sections 3.5 and 3.6, with issue 10's posing):
+//!
+//! 1. pre-alignment of the template by the four palm landmarks (Horn, rigid, as the paper);
+//! 2. the template posed through its own skeleton and skin weights onto the subject's link
+//!    model ([`super::posture_fit`]), so that the fit explains shape and not posture;
+//! 3. QEM simplification keeping every landmark and dimension vertex (or none, at
+//!    [`FitResolution::Full`]);
+//! 4. the landmark fit with the caliper dimensions (equation 2) and, as soft terms, the
+//!    subject's estimated joint centres expressed in the ring of skin around each joint
+//!    (issue 10, step 3);
+//! 5. the transfer back to the high-resolution template (equation 3);
+//! 6. section 3.6 is [`super::section_centre`], applied by the caller to the link model.
 
-use super::correspondence::{fit_landmarks, DistanceConstraint, FitParams, LandmarkConstraint};
+use super::correspondence::{
+    fit_landmarks_with_points, DistanceConstraint, FitParams, LandmarkConstraint, PointConstraint,
+};
+use super::posture_fit::{fit_posture, PostureFit, PostureTargets, SkinnedMarker};
 use super::simplify::simplify_qem;
 use super::transfer::{bind, transfer};
-use crate::anatomy::{landmark_names, palm_markers};
+use crate::anatomy::{landmark_names, palm_markers, Dimension, Joint};
 use crate::error::{Error, Result};
-use crate::geometry::{absolute_orientation, Point, TriMesh};
+use crate::geometry::{absolute_orientation, Point, TriMesh, Vec3};
 use crate::mocap::trajectories::Trajectories;
-use crate::template::TemplateHand;
+use crate::skeleton::forward_kinematics::posed_skeleton;
+use crate::skeleton::Skeleton;
+use crate::template::{dominant_links, TemplateHand};
+use nalgebra::{Isometry3, Matrix4, Vector4};
 use std::collections::BTreeMap;
+use std::str::FromStr;
 
 /// Faces of the simplified template the fit runs on (the seed paper: 992).
 pub const LOW_FACES: usize = 1000;
+
+/// Default weight of the joint-centre terms (issue 10, step 3), relative to the mean diagonal
+/// of the correspondence energy's matrix: **off**. Measured on the validation suite (README,
+/// "Skin"), weights 0.1 and 1 made the skin worse on average (typical-l1: 0.59 -> 0.67 -> 0.87
+/// mm mean), because the estimated centres are 1-2 mm off and a ring of skin follows them;
+/// `--centre-weight` turns them on.
+pub const CENTRE_WEIGHT: f64 = 0.0;
+
+/// Convergence tolerance of the fit at [`FitResolution::Full`], mm (5 µm, a fortieth of the
+/// markers' noise).
+pub const FULL_TOLERANCE_MM: f64 = 5e-3;
+
+/// Which mesh the landmark fit runs on.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum FitResolution {
+    /// The QEM-simplified template of [`LOW_FACES`] faces, transferred back (the paper).
+    Low,
+    /// The full-resolution template directly (37,024 faces).
+    Full,
+}
+
+impl FromStr for FitResolution {
+    type Err = Error;
+    fn from_str(s: &str) -> Result<Self> {
+        match s {
+            "low" => Ok(FitResolution::Low),
+            "full" => Ok(FitResolution::Full),
+            _ => Err(Error::invalid(format!(
+                "unknown fit resolution '{s}' (expected low or full)"
+            ))),
+        }
+    }
+}
+
+/// Options of [`fit_skin`].
+#[derive(Clone, Debug, PartialEq)]
+pub struct SkinOptions {
+    /// Mesh the fit runs on.
+    pub resolution: FitResolution,
+    /// Pose the template onto the link model before the fit (issue 10, step 2).
+    pub pose_template: bool,
+    /// Weight of the joint-centre terms (issue 10, step 3); 0 leaves them out.
+    pub centre_weight: f64,
+    /// Weights and stopping rule of the correspondence optimisation.
+    pub fit: FitParams,
+}
+
+impl Default for SkinOptions {
+    fn default() -> Self {
+        SkinOptions {
+            resolution: FitResolution::Low,
+            pose_template: true,
+            centre_weight: CENTRE_WEIGHT,
+            fit: FitParams::default(),
+        }
+    }
+}
 
 /// The fitted skin at both resolutions, homologous to the template's.
 #[derive(Clone, Debug)]
@@ -27,16 +100,46 @@ pub struct SkinFit {
     pub landmark_residuals_mm: BTreeMap<String, f64>,
     /// Per given dimension: achieved minus measured, mm.
     pub dimension_residuals_mm: BTreeMap<String, f64>,
+    /// Per joint-centre term: distance of the template's centre, carried by its ring of skin,
+    /// from the subject's estimated centre, mm.
+    pub centre_residuals_mm: BTreeMap<String, f64>,
+    /// The template's posture found before the fit (absent without a link model or when
+    /// posing is off).
+    pub posture: Option<PostureFit>,
+    /// Faces of `high` whose normal turned more than 90° from the template's once the
+    /// pre-alignment is undone (inverted), and faces that lost their area (degenerate).
+    pub inverted_faces: usize,
+    /// Faces of `high` with (almost) no area left: below 1e-6 of the template face's area.
+    pub degenerate_faces: usize,
     /// Whether the iterated fit converged.
     pub converged: bool,
+    /// Linearised solves of the fit.
+    pub iterations: usize,
+    /// Things the user should know (a dimension the template cannot measure, a constraint
+    /// met only approximately).
+    pub warnings: Vec<String>,
 }
 
-/// Fit the template to a subject's static reference trial and caliper dimensions.
+/// Landmarks further than this from their markers after the fit are reported, mm.
+pub const LANDMARK_WARN_MM: f64 = 0.5;
+/// Dimensions missed by more than this after the fit are reported, mm.
+pub const DIMENSION_WARN_MM: f64 = 0.5;
+
+/// Fit the template to a subject's static reference trial, caliper dimensions and (optionally)
+/// estimated link model; see the module documentation for the steps.
+///
+/// Errors: a landmark missing from the reference trial or never seen in it (named), a
+/// degenerate pre-alignment (palm markers collinear), and the errors of the fit itself.
+/// A dimension the template has no vertex pair for is left out with a warning; a constraint
+/// the fit cannot meet (contradictory input) is met as closely as possible, with a warning
+/// naming it and its residual.
 pub fn fit_skin(
     template: &TemplateHand,
     reference: &Trajectories,
-    dimensions: &BTreeMap<crate::anatomy::Dimension, f64>,
+    dimensions: &BTreeMap<Dimension, f64>,
     marker_offset_mm: f64,
+    link_model: Option<&Skeleton>,
+    opts: &SkinOptions,
 ) -> Result<SkinFit> {
     let names = landmark_names();
     reference.require(&names)?;
@@ -51,6 +154,7 @@ pub fn fit_skin(
             })
     };
     let spec = &template.spec;
+    let mut warnings = Vec::new();
     let normals = template.mesh.vertex_normals();
     let marker_on_template = |n: &str| -> Point {
         let v = spec.landmarks[n];
@@ -65,69 +169,315 @@ pub fn fit_skin(
         .iter()
         .map(|n| target(n))
         .collect::<Result<_>>()?;
-    let pre = absolute_orientation(&src, &dst, None, false)?.isometry();
+    let pre = absolute_orientation(&src, &dst, None, false)
+        .map_err(|e| Error::input(&reference.source, format!("palm markers: {e}")))?
+        .isometry();
     let aligned = template.mesh.transformed(&pre);
+    let aligned_skeleton = posed_skeleton(
+        &template.skeleton,
+        &vec![pre; crate::anatomy::Link::ALL.len()],
+    );
 
-    // 2. Simplify, keeping every landmark and dimension vertex.
+    // 2. The template posed onto the subject's link model.
+    let posture = match (link_model, opts.pose_template) {
+        (Some(sk), true) => Some(fit_posture(
+            &aligned_skeleton,
+            &PostureTargets {
+                subject: sk,
+                subject_markers: names
+                    .iter()
+                    .map(|n| Ok((n.to_string(), target(n)?)))
+                    .collect::<Result<_>>()?,
+                template_markers: names
+                    .iter()
+                    .map(|n| {
+                        (
+                            n.to_string(),
+                            SkinnedMarker {
+                                position: pre * marker_on_template(n),
+                                weights: template.weights[spec.landmarks[*n]].clone(),
+                            },
+                        )
+                    })
+                    .collect(),
+            },
+        )?),
+        _ => None,
+    };
+    let (posed, posed_skeleton) = match &posture {
+        Some(p) => (
+            linear_blend(&aligned, &template.weights, &p.transforms),
+            p.skeleton.clone(),
+        ),
+        None => (aligned.clone(), aligned_skeleton.clone()),
+    };
+
+    // 3. The mesh the fit runs on.
     let mut keep: Vec<usize> = spec.landmarks.values().copied().collect();
     keep.extend(spec.dimensions.values().flatten());
     keep.sort_unstable();
     keep.dedup();
-    let simplified = simplify_qem(&aligned, LOW_FACES, &keep)?;
-    let low_index =
-        |v: usize| simplified.index_of[v].expect("kept vertices survive simplification");
+    let simplified = simplify_qem(&posed, LOW_FACES, &keep)?;
+    let (fit_mesh, index): (&TriMesh, Box<dyn Fn(usize) -> usize>) = match opts.resolution {
+        FitResolution::Low => (
+            &simplified.mesh,
+            Box::new(|v: usize| simplified.index_of[v].expect("kept vertices survive")),
+        ),
+        FitResolution::Full => (&posed, Box::new(|v: usize| v)),
+    };
+    let owners = dominant_links(&template.weights);
+    let fit_owner: Vec<usize> = match opts.resolution {
+        FitResolution::Low => simplified.kept.iter().map(|&v| owners[v]).collect(),
+        FitResolution::Full => owners.clone(),
+    };
 
-    // 3. The landmark fit with the caliper dimensions (equation 2).
+    // 4. The landmark fit with the caliper dimensions (equation 2) and the centre terms.
     let landmarks: Vec<LandmarkConstraint> = names
         .iter()
         .map(|n| {
             Ok(LandmarkConstraint {
-                vertex: low_index(spec.landmarks[*n]),
+                vertex: index(spec.landmarks[*n]),
                 target: target(n)?,
                 offset_mm: marker_offset_mm,
             })
         })
         .collect::<Result<_>>()?;
-    let distances: Vec<DistanceConstraint> = dimensions
-        .iter()
-        .filter_map(|(d, &len)| {
-            let [a, b] = spec.dimension(*d)?;
-            Some(DistanceConstraint {
-                a: low_index(a),
-                b: low_index(b),
+    let mut distances: Vec<DistanceConstraint> = Vec::new();
+    for (d, &len) in dimensions {
+        match spec.dimension(*d) {
+            Some([a, b]) => distances.push(DistanceConstraint {
+                a: index(a),
+                b: index(b),
                 length_mm: len,
                 name: d.name(),
-            })
-        })
-        .collect();
-    let fit = fit_landmarks(
-        &simplified.mesh,
-        &landmarks,
-        &distances,
-        &FitParams::default(),
-    )?;
+            }),
+            None => warnings.push(format!(
+                "skin: dimension {} has no vertex pair on the template; it was not used",
+                d.name()
+            )),
+        }
+    }
+    let mut centres: Vec<PointConstraint> = Vec::new();
+    if let (Some(sk), true) = (link_model, opts.centre_weight > 0.0) {
+        for j in centre_joints() {
+            if let Some((vertices, weights)) = centre_ring(fit_mesh, &fit_owner, &posed_skeleton, j)
+            {
+                centres.push(PointConstraint {
+                    vertices,
+                    weights,
+                    target: sk.centre(j),
+                    weight: opts.centre_weight,
+                    name: j.name().to_string(),
+                });
+            }
+        }
+    }
+    let mut params = opts.fit.clone();
+    if opts.resolution == FitResolution::Full {
+        // On the fine mesh a landmark's normal hangs on faces a millimetre wide, and the
+        // linearised iterates circle within a few micrometres instead of settling.
+        params.tolerance_mm = params.tolerance_mm.max(FULL_TOLERANCE_MM);
+    }
+    let fit = fit_landmarks_with_points(fit_mesh, &landmarks, &distances, &centres, &params)?;
 
-    // 4. Back to the full resolution through per-face frames (equation 3).
-    let binding = bind(&simplified.mesh, &aligned.vertices)?;
-    let high = TriMesh {
-        vertices: transfer(&binding, &fit.mesh)?,
-        faces: aligned.faces.clone(),
+    // 5. Both resolutions: back to the full one through per-face frames (equation 3), or the
+    // low one read off the full fit (its vertices are template vertices).
+    let (low, high) = match opts.resolution {
+        FitResolution::Low => {
+            let binding = bind(&simplified.mesh, &posed.vertices)?;
+            let high = TriMesh {
+                vertices: transfer(&binding, &fit.mesh)?,
+                faces: posed.faces.clone(),
+            };
+            (fit.mesh.clone(), high)
+        }
+        FitResolution::Full => (
+            TriMesh {
+                vertices: simplified
+                    .kept
+                    .iter()
+                    .map(|&v| fit.mesh.vertices[v])
+                    .collect(),
+                faces: simplified.mesh.faces.clone(),
+            },
+            fit.mesh.clone(),
+        ),
     };
+    let (inverted_faces, degenerate_faces) = face_check(&aligned, &high);
+
+    let landmark_residuals_mm: BTreeMap<String, f64> = names
+        .iter()
+        .map(|n| n.to_string())
+        .zip(fit.landmark_residuals_mm.iter().copied())
+        .collect();
+    let dimension_residuals_mm: BTreeMap<String, f64> = distances
+        .iter()
+        .map(|d| d.name.clone())
+        .zip(fit.distance_residuals_mm.iter().copied())
+        .collect();
+    for (n, r) in &landmark_residuals_mm {
+        if *r > LANDMARK_WARN_MM {
+            warnings.push(format!(
+                "skin: landmark {n} is {r:.2} mm from its marker after the fit: the landmarks \
+                 and dimensions contradict each other there"
+            ));
+        }
+    }
+    for (n, r) in &dimension_residuals_mm {
+        if r.abs() > DIMENSION_WARN_MM {
+            warnings.push(format!(
+                "skin: dimension {n} is met only to {r:+.2} mm: it contradicts the landmarks; \
+                 check the caliper value"
+            ));
+        }
+    }
+    if inverted_faces > 0 || degenerate_faces > 0 {
+        warnings.push(format!(
+            "skin: {inverted_faces} inverted and {degenerate_faces} degenerate faces in the \
+             fitted skin"
+        ));
+    }
+    if !fit.converged {
+        warnings.push(format!(
+            "skin: the landmark fit did not converge in {} iterations; see the residuals",
+            fit.iterations
+        ));
+    }
     Ok(SkinFit {
-        landmark_residuals_mm: names
-            .iter()
-            .map(|n| n.to_string())
-            .zip(fit.landmark_residuals_mm.iter().copied())
-            .collect(),
-        dimension_residuals_mm: distances
-            .iter()
-            .map(|d| d.name.clone())
-            .zip(fit.distance_residuals_mm.iter().copied())
-            .collect(),
-        converged: fit.converged,
-        low: fit.mesh,
+        low,
         high,
+        landmark_residuals_mm,
+        dimension_residuals_mm,
+        centre_residuals_mm: centres
+            .iter()
+            .map(|c| c.name.clone())
+            .zip(fit.point_residuals_mm.iter().copied())
+            .collect(),
+        posture,
+        inverted_faces,
+        degenerate_faces,
+        converged: fit.converged,
+        iterations: fit.iterations,
+        warnings,
     })
+}
+
+/// Linear blend skinning of `mesh` by per-vertex link `weights` and link `transforms`.
+fn linear_blend(
+    mesh: &TriMesh,
+    weights: &crate::template::LinkWeights,
+    transforms: &[Isometry3<f64>],
+) -> TriMesh {
+    let m: Vec<Matrix4<f64>> = transforms.iter().map(|t| t.to_homogeneous()).collect();
+    TriMesh {
+        vertices: mesh
+            .vertices
+            .iter()
+            .zip(weights)
+            .map(|(p, w)| {
+                let h = Vector4::new(p.x, p.y, p.z, 1.0);
+                let acc: Vector4<f64> = w.iter().map(|&(l, wl)| m[l] * h * wl).sum();
+                Point::new(acc.x, acc.y, acc.z)
+            })
+            .collect(),
+        faces: mesh.faces.clone(),
+    }
+}
+
+/// Joints whose centre constrains the skin: the digits' joints, where skin surrounds the bone
+/// on every side. The wrist and the thumb's CMC sit under the thick thenar and carpal tissue,
+/// where a ring of skin says little about the centre, so they are left out.
+fn centre_joints() -> Vec<Joint> {
+    Joint::ALL
+        .iter()
+        .copied()
+        .filter(|&j| j != Joint::Wrist && j != Joint::TCmc)
+        .collect()
+}
+
+/// Vertices around joint `j` and affine weights reproducing its centre (issue 10, step 3).
+///
+/// The ring: vertices of the two links the joint connects, in two slabs just proximal and
+/// just distal of the joint's plane (normal to its link), within 16 mm of the centre, one per
+/// 45° sector around the link's axis and slab (the nearest to the centre in that sector). Two
+/// slabs make the points span 3-D, so the centre is an affine combination of them; the weights
+/// are the affine ones closest to uniform, `w = w₀ + Aᵀ(AAᵀ)⁻¹(b − A w₀)` with `A` the rows of
+/// the homogeneous coordinates, `b = (c, 1)`. `None` when fewer than six sectors are filled.
+fn centre_ring(
+    mesh: &TriMesh,
+    owner: &[usize],
+    sk: &Skeleton,
+    j: Joint,
+) -> Option<(Vec<usize>, Vec<f64>)> {
+    let jf = sk.joint(j);
+    let c = jf.centre;
+    let (z, x, y) = (jf.z(), jf.x(), jf.y());
+    let links = [j.parent_link().index(), j.child_link().index()];
+    let mean_edge = {
+        let f = &mesh.faces;
+        let n = f.len().min(4000);
+        let step = (f.len() / n.max(1)).max(1);
+        let (mut s, mut k) = (0.0, 0);
+        for face in f.iter().step_by(step) {
+            s += (mesh.vertices[face[0]] - mesh.vertices[face[1]]).norm();
+            k += 1;
+        }
+        s / k.max(1) as f64
+    };
+    let slab = mean_edge.max(1.0);
+    let mut best: [Option<(f64, usize)>; 16] = [None; 16];
+    for (v, p) in mesh.vertices.iter().enumerate() {
+        if !links.contains(&owner[v]) {
+            continue;
+        }
+        let d: Vec3 = p - c;
+        let h = d.dot(&z);
+        if h.abs() > slab || d.norm() > 16.0 {
+            continue;
+        }
+        let level = usize::from(h >= 0.0);
+        let ang = d.dot(&y).atan2(d.dot(&x));
+        let sector =
+            (((ang + std::f64::consts::PI) / (std::f64::consts::PI / 4.0)) as usize).min(7);
+        let slot = &mut best[level * 8 + sector];
+        let r = d.norm();
+        if slot.is_none_or(|(rb, _)| r < rb) {
+            *slot = Some((r, v));
+        }
+    }
+    let verts: Vec<usize> = best.iter().flatten().map(|&(_, v)| v).collect();
+    if verts.len() < 6 {
+        return None;
+    }
+    let k = verts.len();
+    let a = nalgebra::DMatrix::from_fn(4, k, |r, i| {
+        if r < 3 {
+            mesh.vertices[verts[i]][r]
+        } else {
+            1.0
+        }
+    });
+    let w0 = nalgebra::DVector::from_element(k, 1.0 / k as f64);
+    let b = nalgebra::DVector::from_vec(vec![c.x, c.y, c.z, 1.0]);
+    let gram = &a * a.transpose();
+    let lam = gram.cholesky()?.solve(&(b - &a * &w0));
+    let w = w0 + a.transpose() * lam;
+    Some((verts, w.iter().copied().collect()))
+}
+
+/// Faces of `fitted` whose normal turned more than 90° from `reference`'s (same faces), and
+/// faces whose area fell below 1e-6 of the reference face's.
+fn face_check(reference: &TriMesh, fitted: &TriMesh) -> (usize, usize) {
+    let (mut inverted, mut degenerate) = (0, 0);
+    for f in 0..reference.n_faces() {
+        let (a, b) = (reference.face_cross(f), fitted.face_cross(f));
+        if b.norm() <= 1e-6 * a.norm() {
+            degenerate += 1;
+        } else if a.dot(&b) < 0.0 {
+            inverted += 1;
+        }
+    }
+    (inverted, degenerate)
 }
 
 #[cfg(test)]
@@ -137,43 +487,98 @@ mod tests {
     use crate::synth::{simulate, Preset, SynthOptions};
     use crate::template::load_template;
 
-    /// On a simulated subject the fitted skin is homologous to the template, meets its landmarks
-    /// and dimensions, and lies close to the CT-like reference (an independent surface).
+    /// On a simulated subject held in a posture other than the template's, the skin fitted
+    /// after posing the template onto the estimated link model is homologous to the template,
+    /// meets its dimensions and (apart from the caliper-shared ones) its landmarks, has no
+    /// inverted face, and lies close to the CT-like reference (an independent surface); the fit
+    /// without posing is measurably further off.
     #[test]
-    fn fitted_skin_is_homologous_and_near_the_reference() {
+    fn posed_fit_is_homologous_and_near_the_reference() {
         let s = simulate(&SynthOptions {
-            duration_s: Some(3.0),
+            duration_s: Some(20.0),
             voxel_mm: 1.0,
-            ..SynthOptions::new(61, Preset::Typical)
+            posture: crate::synth::Posture::Varied,
+            ..SynthOptions::new(104, Preset::Typical)
         })
         .unwrap();
         let t = load_template(s.subject.hand).unwrap();
-        let fit = fit_skin(
-            &t,
-            &s.trials["reference"],
-            &s.subject.dimensions,
-            s.subject.marker_offset_mm,
+        let model = crate::link::model::estimate_link_model_from(
+            s.subject.hand,
+            s.subject.reference_frame,
+            &s.trials,
         )
         .unwrap();
+        let run = |opts: &SkinOptions| {
+            fit_skin(
+                &t,
+                &s.trials["reference"],
+                &s.subject.dimensions,
+                s.subject.marker_offset_mm,
+                Some(&model.skeleton),
+                opts,
+            )
+            .unwrap()
+        };
+        let tree = AabbTree::new(&s.reference);
+        let surface = |m: &TriMesh| {
+            let d: Vec<f64> = tree
+                .distances(&m.vertices)
+                .into_iter()
+                .map(|x| x.unwrap())
+                .collect();
+            let mean = d.iter().sum::<f64>() / d.len() as f64;
+            (mean, d.iter().copied().fold(0.0, f64::max))
+        };
+        let fit = run(&SkinOptions::default());
         assert_eq!(fit.high.faces, t.mesh.faces);
         assert_eq!(fit.high.n_vertices(), t.mesh.n_vertices());
-        let tree = AabbTree::new(&s.reference);
-        let d: Vec<f64> = tree
-            .distances(&fit.high.vertices)
-            .into_iter()
-            .map(|x| x.unwrap())
-            .collect();
-        let mean = d.iter().sum::<f64>() / d.len() as f64;
-        let max = d.iter().copied().fold(0.0, f64::max);
-        eprintln!(
-            "skin vs reference: mean {mean:.2} mm, max {max:.2} mm; landmark max {:.3} mm",
-            fit.landmark_residuals_mm
-                .values()
-                .copied()
-                .fold(0.0, f64::max)
-        );
-        // Issue 5's accuracy goal on a typical subject.
+        assert_eq!((fit.inverted_faces, fit.degenerate_faces), (0, 0));
+        assert!(fit.converged);
+        let (mean, max) = surface(&fit.high);
+        eprintln!("posed fit vs reference: mean {mean:.2} mm, max {max:.2} mm");
+        // Issue 10's accuracy goal on a subject in a varied posture.
         assert!(mean < 1.0 && max < 5.0, "mean {mean} max {max}");
-        assert!(fit.landmark_residuals_mm.values().all(|r| *r < 0.5));
+        assert!(fit.dimension_residuals_mm.values().all(|r| r.abs() < 0.02));
+        let shared = ["I_MCP_LAT", "L_MCP_LAT", "WRIST_RAD", "WRIST_ULN"];
+        for (n, r) in &fit.landmark_residuals_mm {
+            let bound = if shared.contains(&n.as_str()) {
+                1.0
+            } else {
+                0.1
+            };
+            assert!(*r < bound, "landmark {n}: {r} mm");
+        }
+        let posture = fit.posture.as_ref().expect("posed");
+        let truth_mcp = s.truth.reference_posture_deg["I_MCP"];
+        let fitted = posture.pose.angles[Joint::IMcp.index()][1].to_degrees();
+        assert!(
+            (fitted - truth_mcp[1]).abs() < 4.0,
+            "I_MCP abduction {fitted} vs {}",
+            truth_mcp[1]
+        );
+        let unposed = run(&SkinOptions {
+            pose_template: false,
+            ..SkinOptions::default()
+        });
+        let (mean0, _) = surface(&unposed.high);
+        eprintln!("unposed fit vs reference: mean {mean0:.2} mm");
+        assert!(
+            mean < 0.8 * mean0,
+            "posing gained too little: {mean} vs {mean0}"
+        );
+    }
+
+    #[test]
+    fn fit_resolution_parses() {
+        assert_eq!("low".parse::<FitResolution>().unwrap(), FitResolution::Low);
+        assert_eq!(
+            "full".parse::<FitResolution>().unwrap(),
+            FitResolution::Full
+        );
+        assert!("medium"
+            .parse::<FitResolution>()
+            .unwrap_err()
+            .to_string()
+            .contains("medium"));
     }
 }

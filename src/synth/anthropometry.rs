@@ -14,7 +14,7 @@
 use crate::anatomy::{Finger, Joint, Link};
 use crate::geometry::{Point, TriMesh, Vec3};
 use crate::rng::Rng;
-use crate::skeleton::{frame_from_axis, frame_from_long_axis, JointFrame, Skeleton};
+use crate::skeleton::{frame_from_axis, JointFrame, Skeleton};
 use crate::template::LinkWeights;
 use nalgebra::{Matrix3, Rotation3, UnitQuaternion};
 
@@ -184,33 +184,6 @@ pub fn shape_hand(
         },
         skeleton,
     }
-}
-
-/// A skeleton rebuilt after a rigid posture change: each joint's frame rotated with the link on
-/// its parent side (where a joint's axes live), centres moved likewise.
-pub fn posed_skeleton(sk: &Skeleton, transforms: &[nalgebra::Isometry3<f64>]) -> Skeleton {
-    let mut out = sk.clone();
-    for j in Joint::ALL {
-        let t = transforms[j.parent_link().index()];
-        out.joints[j.index()] = JointFrame {
-            centre: t * sk.centre(j),
-            frame: t.rotation.to_rotation_matrix() * sk.joint(j).frame,
-        };
-    }
-    for f in Finger::ALL {
-        out.tips[f as usize] = transforms[f.links()[2].index()] * sk.tips[f as usize];
-    }
-    // A 3-DOF joint's frame follows the child link's long axis in the new posture (its centre is
-    // what the truth records; the frame only orients reports).
-    for j in Joint::ALL {
-        if j.dof() == 3 {
-            let z = out.distal_end(j) - out.centre(j);
-            if let Ok(fr) = frame_from_long_axis(&z, &out.joint(j).y()) {
-                out.joints[j.index()].frame = fr;
-            }
-        }
-    }
-    out
 }
 
 #[cfg(test)]

@@ -234,6 +234,22 @@ pub fn dimension_joint(d: Dimension, f: Finger) -> Joint {
     }
 }
 
+/// The two vertices at the edges of the digit at a 1-DOF joint `j`: the caliper extremes along
+/// its rotation axis (the breadth pair of the dimensions where one is measured there). The seed
+/// paper's section 3.6 moves the joint centre onto the axis point nearest to them.
+pub fn joint_edge_pair(
+    mesh: &TriMesh,
+    sk: &Skeleton,
+    owner: &[usize],
+    j: Joint,
+) -> Result<[usize; 2]> {
+    let at = |j: Joint| {
+        let (a, b) = (j.parent_link().index(), j.child_link().index());
+        move |v: usize| owner[v] == a || owner[v] == b
+    };
+    extremes(mesh, sk, j, &sk.joint(j).x(), &at)
+}
+
 /// Opposite caliper extremes at joint `j` along `dir`, in the slab normal to the joint's link.
 fn extremes<K: Fn(usize) -> bool>(
     mesh: &TriMesh,
