@@ -108,8 +108,8 @@ mod tests {
                 .split(' ')
                 .map(|x| x.parse().unwrap())
                 .collect();
-            for k in 0..3 {
-                assert!((c[k] * 10.0 - m.nodes[i][k]).abs() < 1e-12);
+            for (k, x) in c.iter().enumerate() {
+                assert!((x * 10.0 - m.nodes[i][k]).abs() < 1e-12);
             }
         }
         assert_eq!(lines[nodes + 13], "$EndNodes");
