@@ -6,7 +6,10 @@ use criterion::{criterion_group, criterion_main, Criterion};
 use ergohand::anatomy::Side;
 use ergohand::geometry::{Point, TriMesh};
 use ergohand::template::load_template;
-use ergohand::tet::{isosurface_stuffing, subject_tet_mesh, StuffingParams};
+use ergohand::tet::{
+    bind_boundary, isosurface_stuffing, place_boundary, subject_tet_mesh, ArapOptions,
+    ElasticSolver, StuffingParams,
+};
 use std::hint::black_box;
 
 fn tet_bench(c: &mut Criterion) {
@@ -37,6 +40,26 @@ fn tet_bench(c: &mut Criterion) {
     g.bench_function("deform_to_subject", |b| {
         b.iter(|| subject_tet_mesh(&t, black_box(&tet), &skin).unwrap())
     });
+    // Its parts.
+    g.bench_function("bind_boundary", |b| {
+        b.iter(|| bind_boundary(black_box(&tet), &t.mesh).unwrap())
+    });
+    let binding = bind_boundary(&tet, &t.mesh).unwrap();
+    g.bench_function("factorise", |b| {
+        b.iter(|| ElasticSolver::new(black_box(&tet), &binding.nodes).unwrap())
+    });
+    let solver = ElasticSolver::new(&tet, &binding.nodes).unwrap();
+    let held = place_boundary(&binding, &skin).unwrap();
+    let (_, stats) = solver.solve(&held, &ArapOptions::default()).unwrap();
+    eprintln!("ARAP: {stats:?}");
+    g.bench_function("arap_solve", |b| {
+        b.iter(|| {
+            solver
+                .solve(black_box(&held), &ArapOptions::default())
+                .unwrap()
+        })
+    });
+    g.bench_function("quality", |b| b.iter(|| black_box(&tet).quality()));
     g.finish();
 }
 

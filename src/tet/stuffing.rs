@@ -648,6 +648,25 @@ mod tests {
         assert!((m.boundary_mesh().signed_volume() - m.volume()).abs() < 1e-9 * v);
     }
 
+    /// The ray-parity fallback agrees with the pseudo-normal sign away from the surface.
+    #[test]
+    fn parity_fallback_agrees_with_signed_distance() {
+        let s = icosphere(10.0, 3);
+        let tree = AabbTree::new(&s);
+        let normals = PseudoNormals::new(&s);
+        let mut rng = crate::rng::Rng::new(3);
+        let mut checked = 0;
+        for _ in 0..400 {
+            let p = Point::from(rng.gauss3(8.0));
+            let d = tree.signed_distance(&normals, &p).unwrap();
+            if d.abs() > 0.05 {
+                assert_eq!(inside_by_parity(&tree, &p), d < 0.0, "{p:?} {d}");
+                checked += 1;
+            }
+        }
+        assert!(checked > 300);
+    }
+
     #[test]
     fn bad_parameters_are_errors() {
         let c = cuboid(1.0, 1.0, 1.0);
