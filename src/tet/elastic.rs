@@ -28,7 +28,7 @@ use faer::linalg::cholesky::llt::factor::LltRegularization;
 use faer::sparse::linalg::cholesky::{factorize_symbolic_cholesky, LltRef, SymbolicCholesky};
 use faer::sparse::{SparseColMat, Triplet};
 use faer::{Conj, Mat, Par, Side};
-use nalgebra::{Matrix3, UnitQuaternion};
+use nalgebra::Matrix3;
 use rayon::prelude::*;
 use serde::Serialize;
 
@@ -187,7 +187,6 @@ impl ElasticSolver {
             x[v] = *p;
         }
         let mut rotations = vec![Matrix3::zeros(); self.tets.len()];
-        let mut quats = vec![UnitQuaternion::identity(); self.tets.len()];
         self.global_step(&mut x, &rotations);
         let mut stats = ElasticStats {
             iterations: 0,
@@ -196,7 +195,7 @@ impl ElasticSolver {
             energy: 0.0,
         };
         while !stats.converged && stats.iterations < opts.max_iterations {
-            self.local_step(&x, &mut rotations, &mut quats);
+            self.local_step(&x, &mut rotations);
             let before = x.clone();
             self.global_step(&mut x, &rotations);
             stats.iterations += 1;
@@ -207,7 +206,7 @@ impl ElasticSolver {
                 .fold(0.0, f64::max);
             stats.converged = stats.last_change_mm < opts.tolerance_mm;
         }
-        self.local_step(&x, &mut rotations, &mut quats);
+        self.local_step(&x, &mut rotations);
         stats.energy = (0..self.tets.len())
             .map(|t| {
                 self.volume[t] * (self.deformation_gradient(&x, t) - rotations[t]).norm_squared()
@@ -224,21 +223,11 @@ impl ElasticSolver {
         })
     }
 
-    /// Local step: per tetrahedron, the rotation nearest to its deformation gradient,
-    /// warm-started from the previous one (`quats`).
-    fn local_step(
-        &self,
-        x: &[Point],
-        rotations: &mut [Matrix3<f64>],
-        quats: &mut [UnitQuaternion<f64>],
-    ) {
-        rotations
-            .par_iter_mut()
-            .zip(quats.par_iter_mut())
-            .enumerate()
-            .for_each(|(t, (r, q))| {
-                *r = nearest_rotation(&self.deformation_gradient(x, t), q);
-            });
+    /// Local step: per tetrahedron, the rotation nearest to its deformation gradient.
+    fn local_step(&self, x: &[Point], rotations: &mut [Matrix3<f64>]) {
+        rotations.par_iter_mut().enumerate().for_each(|(t, r)| {
+            *r = nearest_rotation(&self.deformation_gradient(x, t));
+        });
     }
 
     /// Global step: solve for the free nodes with the rotations fixed.
@@ -274,32 +263,21 @@ impl ElasticSolver {
     }
 }
 
-/// The rotation nearest to `f` in the Frobenius norm (the rotation of its polar
-/// decomposition when `det f > 0`), by the quaternion iteration of Müller et al. 2016 ("A
-/// robust method to extract the rotational part of deformations", MIG '16), warm-started at
-/// `q`: each step rotates `q` by `ω = Σ_i r_i × f_i / |Σ_i r_i · f_i|` (`r_i`, `f_i` the columns),
-/// which maximises `tr(Rᵀ f)`. Much cheaper than an SVD and robust to inverted elements.
-fn nearest_rotation(f: &Matrix3<f64>, q: &mut UnitQuaternion<f64>) -> Matrix3<f64> {
-    for _ in 0..MAX_ROTATION_STEPS {
-        let r = q.to_rotation_matrix().into_inner();
-        let (mut num, mut den) = (Vec3::zeros(), 0.0);
-        for i in 0..3 {
-            num += r.column(i).cross(&f.column(i));
-            den += r.column(i).dot(&f.column(i));
-        }
-        let omega = num / (den.abs() + 1e-300);
-        let w = omega.norm();
-        if !(w > 1e-15) {
-            break;
-        }
-        *q = UnitQuaternion::from_axis_angle(&nalgebra::Unit::new_unchecked(omega / w), w) * *q;
-        q.renormalize();
+/// The rotation nearest to `f` in the Frobenius norm: `U Vᵀ` of its SVD, with the last
+/// singular vector flipped when that would be a reflection.
+fn nearest_rotation(f: &Matrix3<f64>) -> Matrix3<f64> {
+    let svd = f.svd(true, true);
+    let (Some(mut u), Some(v_t)) = (svd.u, svd.v_t) else {
+        return Matrix3::identity();
+    };
+    if (u * v_t).determinant() < 0.0 {
+        // nalgebra sorts singular values descending: flip the smallest's vector.
+        let s = svd.singular_values;
+        let k = (0..3).min_by(|&a, &b| s[a].total_cmp(&s[b])).unwrap_or(2);
+        u.column_mut(k).neg_mut();
     }
-    q.to_rotation_matrix().into_inner()
+    u * v_t
 }
-
-/// Steps of [`nearest_rotation`] per local step (warm-started, so few are used).
-const MAX_ROTATION_STEPS: usize = 30;
 
 /// Sparse Cholesky factor `K = L Lᵀ` (faer, AMD ordering), computed and applied sequentially
 /// (on two cores faer's parallel kernels cost more in synchronisation than they gain).
