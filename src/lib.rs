@@ -26,6 +26,7 @@ pub mod skeleton;
 pub mod skin;
 pub mod synth;
 pub mod template;
+pub mod tet;
 pub mod validate;
 
 pub use error::{Error, Result};

@@ -3,9 +3,11 @@
 
 pub mod atomic;
 pub mod gltf;
+pub mod gmsh;
 pub mod obj;
 pub mod ply;
 pub mod stl;
 pub mod units;
+pub mod vtk;
 
 pub use units::Units;

@@ -1,0 +1,303 @@
+//! Legacy VTK unstructured grids of linear tetrahedra (ASCII).
+//!
+//! Format reference: Kitware, "VTK File Formats" (VTK User's Guide, 11th ed., chapter 19,
+//! "Simple Legacy Formats"): header line `# vtk DataFile Version 3.0`, a title line, `ASCII`,
+//! `DATASET UNSTRUCTURED_GRID`, then `POINTS n double`, `CELLS n size` (each cell: its point
+//! count, then 0-based point indices), `CELL_TYPES n` (`VTK_TETRA = 10`). The tetrahedron's
+//! points 0, 1, 2 wind counter-clockwise seen from point 3 (positive volume), as in
+//! [`TetMesh`]. Optional `CELL_DATA` of the minimum dihedral angle is written for viewing.
+
+use super::atomic::{read_bytes, write_atomic};
+use super::Units;
+use crate::error::{Error, Result};
+use crate::geometry::Point;
+use crate::tet::mesh::{dihedral_angles, TetMesh};
+use std::path::Path;
+
+/// VTK's cell type id of the linear tetrahedron.
+pub const VTK_TETRA: u32 = 10;
+
+/// Write `mesh` (mm) as a legacy ASCII VTK unstructured grid with coordinates in `units`, with
+/// a cell scalar `min_dihedral_deg` (each tetrahedron's smallest dihedral angle).
+pub fn write_vtk(path: &Path, mesh: &TetMesh, units: Units) -> Result<()> {
+    let s = 1.0 / units.to_mm();
+    write_atomic(path, |w| {
+        writeln!(w, "# vtk DataFile Version 3.0")?;
+        writeln!(w, "ergohand tetrahedral mesh (units: {units:?})")?;
+        writeln!(w, "ASCII")?;
+        writeln!(w, "DATASET UNSTRUCTURED_GRID")?;
+        writeln!(w, "POINTS {} double", mesh.n_nodes())?;
+        for p in &mesh.nodes {
+            // `{:?}` prints the shortest text that reads back to the same f64.
+            writeln!(w, "{:?} {:?} {:?}", p.x * s, p.y * s, p.z * s)?;
+        }
+        writeln!(w, "CELLS {} {}", mesh.n_tets(), 5 * mesh.n_tets())?;
+        for t in &mesh.tets {
+            writeln!(w, "4 {} {} {} {}", t[0], t[1], t[2], t[3])?;
+        }
+        writeln!(w, "CELL_TYPES {}", mesh.n_tets())?;
+        for _ in &mesh.tets {
+            writeln!(w, "{VTK_TETRA}")?;
+        }
+        writeln!(w, "CELL_DATA {}", mesh.n_tets())?;
+        writeln!(w, "SCALARS min_dihedral_deg double 1")?;
+        writeln!(w, "LOOKUP_TABLE default")?;
+        for t in 0..mesh.n_tets() {
+            let a = dihedral_angles(mesh.corners(t))
+                .into_iter()
+                .fold(f64::INFINITY, f64::min);
+            writeln!(w, "{:.4}", a.to_degrees())?;
+        }
+        Ok(())
+    })
+}
+
+/// Read a legacy ASCII VTK unstructured grid of tetrahedra whose coordinates are in `units`;
+/// returns the mesh in mm.
+pub fn read_vtk(path: &Path, units: Units) -> Result<TetMesh> {
+    let bytes = read_bytes(path)?;
+    read_vtk_bytes(&bytes, units, path)
+}
+
+/// Parse legacy VTK bytes (see [`read_vtk`]); `label` names the source in errors. Only ASCII
+/// files whose cells are all `VTK_TETRA` are accepted; data sections after `CELL_TYPES` are
+/// ignored. Counts are checked against the file length before anything is allocated.
+pub fn read_vtk_bytes(bytes: &[u8], units: Units, label: &Path) -> Result<TetMesh> {
+    let err = |msg: String| Error::input(label, msg);
+    let text = std::str::from_utf8(bytes).map_err(|e| {
+        err(format!(
+            "not a text file (invalid UTF-8 at byte {})",
+            e.valid_up_to()
+        ))
+    })?;
+    let mut lines = text.lines();
+    let header = lines.next().unwrap_or("");
+    if !header.starts_with("# vtk DataFile Version") {
+        return Err(err(
+            "not a legacy VTK file: line 1 must start with '# vtk DataFile Version'".into(),
+        ));
+    }
+    let _title = lines
+        .next()
+        .ok_or_else(|| err("truncated: no title line (line 2)".into()))?;
+    match lines.next().map(str::trim) {
+        Some("ASCII") => {}
+        Some("BINARY") => {
+            return Err(err(
+                "binary legacy VTK is not supported: write it as ASCII".into()
+            ))
+        }
+        other => {
+            return Err(err(format!(
+                "line 3 must be ASCII or BINARY, found {:?}",
+                other.unwrap_or("end of file")
+            )))
+        }
+    }
+    let rest: Vec<&str> = lines.collect();
+    let mut tok = rest.iter().flat_map(|l| l.split_ascii_whitespace());
+    let mut next = |what: &str| -> Result<&str> {
+        tok.next()
+            .ok_or_else(|| err(format!("truncated: end of file where {what} was expected")))
+    };
+    let (a, b) = (next("DATASET")?, next("the dataset type")?);
+    if a != "DATASET" || b != "UNSTRUCTURED_GRID" {
+        return Err(err(format!(
+            "expected 'DATASET UNSTRUCTURED_GRID', found '{a} {b}'"
+        )));
+    }
+    // Every number takes at least two bytes (digit and separator): a bound on any count.
+    let limit = bytes.len() / 2;
+    let count = |s: &str, what: &str| -> Result<usize> {
+        let n: usize = s
+            .parse()
+            .map_err(|_| err(format!("{what}: '{s}' is not a count")))?;
+        if n > limit {
+            return Err(err(format!(
+                "{what}: {n} is more than a {}-byte file can hold",
+                bytes.len()
+            )));
+        }
+        Ok(n)
+    };
+    let kw = next("POINTS")?;
+    if kw != "POINTS" {
+        return Err(err(format!("expected POINTS, found '{kw}'")));
+    }
+    let n_points = count(next("the point count")?, "POINTS")?;
+    if n_points.saturating_mul(3) > limit {
+        return Err(err(format!(
+            "POINTS: {n_points} points are more than a {}-byte file can hold",
+            bytes.len()
+        )));
+    }
+    let ty = next("the point type")?;
+    if !matches!(ty, "float" | "double") {
+        return Err(err(format!(
+            "POINTS type '{ty}' is not supported (float or double)"
+        )));
+    }
+    let scale = units.to_mm();
+    let mut nodes = Vec::with_capacity(n_points);
+    for i in 0..n_points {
+        let mut c = [0.0; 3];
+        for (k, x) in c.iter_mut().enumerate() {
+            let s = next("a point coordinate")?;
+            *x = s
+                .parse::<f64>()
+                .ok()
+                .filter(|v| v.is_finite())
+                .ok_or_else(|| {
+                    err(format!(
+                        "point {i} coordinate {k}: '{s}' is not a finite number"
+                    ))
+                })?
+                * scale;
+        }
+        nodes.push(Point::from(c));
+    }
+    let kw = next("CELLS")?;
+    if kw != "CELLS" {
+        return Err(err(format!("expected CELLS, found '{kw}'")));
+    }
+    let n_cells = count(next("the cell count")?, "CELLS")?;
+    let size = count(next("the cell list size")?, "CELLS size")?;
+    if size != 5 * n_cells {
+        return Err(err(format!(
+            "CELLS: list size {size} is not 5 x {n_cells}: only tetrahedra (4 points) are supported"
+        )));
+    }
+    let mut tets = Vec::with_capacity(n_cells);
+    for c in 0..n_cells {
+        let k = next("a cell's point count")?;
+        if k != "4" {
+            return Err(err(format!(
+                "cell {c} has '{k}' points: only tetrahedra (4) are supported"
+            )));
+        }
+        let mut t = [0usize; 4];
+        for x in t.iter_mut() {
+            let s = next("a cell's point index")?;
+            *x = s
+                .parse::<usize>()
+                .ok()
+                .filter(|&v| v < n_points)
+                .ok_or_else(|| {
+                    err(format!(
+                        "cell {c}: point index '{s}' is not one of the {n_points} points"
+                    ))
+                })?;
+        }
+        tets.push(t);
+    }
+    let kw = next("CELL_TYPES")?;
+    if kw != "CELL_TYPES" {
+        return Err(err(format!("expected CELL_TYPES, found '{kw}'")));
+    }
+    let n_types = count(next("the cell type count")?, "CELL_TYPES")?;
+    if n_types != n_cells {
+        return Err(err(format!(
+            "CELL_TYPES: {n_types} types for {n_cells} cells"
+        )));
+    }
+    for c in 0..n_types {
+        let s = next("a cell type")?;
+        if s != "10" {
+            return Err(err(format!(
+                "cell {c} has type '{s}': only VTK_TETRA (10) is supported"
+            )));
+        }
+    }
+    TetMesh::new(nodes, tets).map_err(|e| e.in_file(label))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    fn sample() -> TetMesh {
+        TetMesh::new(
+            vec![
+                Point::new(0.0, 0.0, 0.0),
+                Point::new(1.5, 0.0, 0.0),
+                Point::new(0.0, 2.25, 0.0),
+                Point::new(0.0, 0.0, 1.0 / 3.0),
+                Point::new(0.1, 0.2, -1.7),
+            ],
+            vec![[0, 1, 2, 3], [0, 2, 1, 4]],
+        )
+        .unwrap()
+    }
+
+    fn valid() -> Vec<u8> {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("m.vtk");
+        write_vtk(&p, &sample(), Units::Millimetres).unwrap();
+        std::fs::read(p).unwrap()
+    }
+
+    #[test]
+    fn round_trip_exact_and_in_units() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("m.vtk");
+        let m = sample();
+        write_vtk(&p, &m, Units::Millimetres).unwrap();
+        assert_eq!(read_vtk(&p, Units::Millimetres).unwrap(), m);
+        write_vtk(&p, &m, Units::Metres).unwrap();
+        let back = read_vtk(&p, Units::Metres).unwrap();
+        assert_eq!(back.tets, m.tets);
+        for (a, b) in back.nodes.iter().zip(&m.nodes) {
+            assert!((a - b).norm() < 1e-12);
+        }
+        let text = std::fs::read_to_string(&p).unwrap();
+        assert!(text.contains("CELL_TYPES 2\n10\n10\n"));
+    }
+
+    #[test]
+    fn errors_name_file_and_item() {
+        let good = String::from_utf8(valid()).unwrap();
+        let cases = [
+            (good.replace("ASCII", "BINARY"), "binary"),
+            (good.replace("4 0 2 1 4", "4 0 2 1 9"), "cell 1"),
+            (
+                good.replace("CELL_TYPES 2\n10\n10", "CELL_TYPES 2\n10\n12"),
+                "cell 1 has type",
+            ),
+            (good.replace("POINTS 5", "POINTS 999999999"), "POINTS"),
+            ("hello".into(), "line 1"),
+        ];
+        for (text, want) in cases {
+            let e = read_vtk_bytes(text.as_bytes(), Units::Millimetres, Path::new("x.vtk"))
+                .unwrap_err()
+                .to_string();
+            assert!(e.starts_with("x.vtk: ") && e.contains(want), "{e}");
+            assert!(!e.contains('\n'));
+        }
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(256))]
+
+        #[test]
+        fn truncated_never_panics(cut in 0usize..2000) {
+            let b = valid();
+            let cut = cut.min(b.len());
+            if let Ok(m) = read_vtk_bytes(&b[..cut], Units::Millimetres, Path::new("t.vtk")) {
+                prop_assert!(m.n_tets() <= 2);
+            }
+        }
+
+        #[test]
+        fn mutated_never_panics(edits in prop::collection::vec((any::<prop::sample::Index>(), any::<u8>()), 1..8)) {
+            let mut b = valid();
+            for (i, x) in edits {
+                let i = i.index(b.len());
+                b[i] = x;
+            }
+            if let Ok(m) = read_vtk_bytes(&b, Units::Millimetres, Path::new("t.vtk")) {
+                prop_assert!(m.n_tets() <= 2 && m.n_nodes() <= 5 * 10);
+            }
+        }
+    }
+}
