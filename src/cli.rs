@@ -247,6 +247,12 @@ pub fn reconstruct(subject_dir: &Path, out: &Path, log: &Log) -> Result<crate::l
     Ok(model)
 }
 
+/// `ergohand pose OUT --pose POSE --out FILE.glb|obj`: the hand of a `reconstruct` folder in a
+/// pose file's or a built-in pose's joint angles (see [`crate::pose::pose_command`]).
+pub fn pose(model: &Path, pose: &str, out: &Path, log: &Log) -> Result<()> {
+    crate::pose::pose_command(model, pose, out, log).map(|_| ())
+}
+
 /// `ergohand validate SUBJECT_DIR --model OUT [--report DIR]`: today the link model against
 /// `truth.json` (per-joint centre and axis errors, link lengths) into `DIR/metrics.json`, and a
 /// table on stdout.
