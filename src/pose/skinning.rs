@@ -178,20 +178,21 @@ impl SkinBinding {
     pub fn linear_into(&self, transforms: &[Isometry3<f64>], out: &mut Vec<Point>) {
         self.check(transforms);
         let mats: Vec<[f64; 12]> = transforms.iter().map(displacement_matrix).collect();
-        out.clear();
-        out.reserve(self.rest.len());
         let w = &self.weights;
-        for (i, p) in self.rest.iter().enumerate() {
+        out.clear();
+        out.resize(self.rest.len(), Point::origin());
+        // Slices zipped rather than indexed: no bounds checks in the inner loop.
+        for ((o, p), r) in out.iter_mut().zip(&self.rest).zip(w.offsets.windows(2)) {
             let [x, y, z] = *p;
+            let (a, b) = (r[0] as usize, r[1] as usize);
             let (mut dx, mut dy, mut dz) = (0.0, 0.0, 0.0);
-            for k in w.offsets[i] as usize..w.offsets[i + 1] as usize {
-                let m = &mats[w.links[k] as usize];
-                let a = w.weights[k];
+            for (&l, &a) in w.links[a..b].iter().zip(&w.weights[a..b]) {
+                let m = &mats[l as usize];
                 dx += a * (m[0] * x + m[1] * y + m[2] * z + m[3]);
                 dy += a * (m[4] * x + m[5] * y + m[6] * z + m[7]);
                 dz += a * (m[8] * x + m[9] * y + m[10] * z + m[11]);
             }
-            out.push(Point::new(x + dx, y + dy, z + dz));
+            *o = Point::new(x + dx, y + dy, z + dz);
         }
     }
 
