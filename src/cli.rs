@@ -330,6 +330,12 @@ pub fn reconstruct_with(
     Ok(model)
 }
 
+/// `ergohand pose OUT --pose POSE --out FILE.glb|obj`: the hand of a `reconstruct` folder in a
+/// pose file's or a built-in pose's joint angles (see [`crate::pose::pose_command`]).
+pub fn pose(model: &Path, pose: &str, out: &Path, log: &Log) -> Result<()> {
+    crate::pose::pose_command(model, pose, out, log).map(|_| ())
+}
+
 /// What `validate` measured.
 #[derive(Clone, Debug, serde::Serialize)]
 pub struct Validation {

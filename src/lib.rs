@@ -20,6 +20,7 @@ pub mod geometry;
 pub mod io;
 pub mod link;
 pub mod mocap;
+pub mod pose;
 pub mod render;
 pub mod rng;
 pub mod skeleton;

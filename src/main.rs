@@ -95,6 +95,7 @@ enum Command {
     /// Pose a reconstructed hand.
     Pose {
         model: PathBuf,
+        /// A POSE.toml file, or a built-in pose: open, fist, power-grasp, pinch, tripod.
         #[arg(long)]
         pose: PathBuf,
         #[arg(long)]
@@ -165,7 +166,9 @@ fn main() -> ExitCode {
             let report = report.unwrap_or_else(|| model.join("report"));
             cli::validate(&subject_dir, &model, &report, &log).map(|_| ())
         }
-        Command::Pose { .. } => return not_built("pose", 7),
+        Command::Pose { model, pose, out } => {
+            cli::pose(&model, &pose.to_string_lossy(), &out, &log)
+        }
         Command::Grasp { .. } => return not_built("grasp", 8),
         Command::Batch { .. } => return not_built("batch", 9),
     };

@@ -1,55 +1,15 @@
-//! The template as a skinned glTF: one joint node per link of the spec's tree, placed at the
-//! link's joint centre (the forearm at the wrist centre), each node's rotation the identity in
-//! the rest pose, inverse bind matrices the inverse translations, and the template's link
-//! weights. Posing it in a viewer rotates each link about its joint centre, as
-//! [`crate::skeleton::forward_kinematics`] does.
+//! The template as a skinned glTF: the general skinned-hand scene of
+//! [`crate::pose::gltf::skinned_scene`] (one joint node per link of the spec's tree at its joint
+//! centre and frame, inverse bind matrices, the link weights) for the template's mesh, weights
+//! and skeleton, in the rest pose. Posing it in a viewer rotates each link about its joint
+//! centre, as [`crate::skeleton::forward_kinematics`] does.
 
 use super::TemplateHand;
-use crate::anatomy::{Joint, Link};
-use crate::geometry::Point;
-use crate::io::gltf::{Scene, SceneMesh, Skin, SkinJoint};
-use nalgebra::Matrix4;
+use crate::io::gltf::Scene;
 
-/// The scene of a skinned hand: `mesh` with per-vertex link `weights` over [`Link::ALL`] and the
-/// joint centres of `skeleton`.
+/// The scene of the skinned template `hand` at rest.
 pub fn skinned_scene(name: &str, hand: &TemplateHand) -> Scene {
-    let sk = &hand.skeleton;
-    let origin = |l: Link| -> Point {
-        match l.joint() {
-            Some(j) => sk.centre(j),
-            None => sk.centre(Joint::Wrist),
-        }
-    };
-    let joints = Link::ALL
-        .iter()
-        .map(|&l| {
-            let world = Matrix4::new_translation(&origin(l).coords);
-            let parent = l.parent();
-            let local = match parent {
-                Some(p) => Matrix4::new_translation(&(origin(l) - origin(p))),
-                None => world,
-            };
-            SkinJoint {
-                name: l.name().to_string(),
-                parent: parent.map(|p| p.index()),
-                local,
-                world,
-                inverse_bind: Matrix4::new_translation(&-origin(l).coords),
-            }
-        })
-        .collect();
-    Scene {
-        meshes: vec![SceneMesh {
-            name: name.to_string(),
-            mesh: hand.mesh.clone(),
-            normals: Some(hand.mesh.vertex_normals()),
-            colors: None,
-            skin: Some(Skin {
-                joints,
-                weights: hand.weights.clone(),
-            }),
-        }],
-    }
+    crate::pose::gltf::skinned_scene(name, &hand.mesh, &hand.weights, &hand.skeleton, None)
 }
 
 #[cfg(test)]
@@ -59,6 +19,7 @@ mod tests {
     use crate::io::gltf::{glb_bytes, read_gltf_slice};
     use crate::io::Units;
     use crate::template::load_template;
+    use nalgebra::Matrix4;
     use std::path::Path;
 
     /// The skinned template survives a GLB round trip: same vertices, faces, joint tree and

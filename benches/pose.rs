@@ -1,0 +1,49 @@
+//! Posing the 18,514-vertex / 37,024-face skin (issue 7's speed goal: at least 2,000 poses per
+//! second on one core with linear blend skinning): forward kinematics plus skinning per pose,
+//! into a reused buffer as grasp search does; dual-quaternion skinning for comparison; and the
+//! one-off bone heat weights.
+
+use criterion::{criterion_group, criterion_main, Criterion};
+use ergohand::anatomy::Side;
+use ergohand::pose::{bone_heat_weights, named_pose, HeatOptions, IndividualHand, WeightMethod};
+use ergohand::skeleton::forward_kinematics::link_transforms;
+use ergohand::template::load_template;
+use std::hint::black_box;
+
+fn pose_bench(c: &mut Criterion) {
+    let t = load_template(Side::Right).unwrap();
+    let h = IndividualHand::from_skin(
+        &t,
+        t.mesh.clone(),
+        t.skeleton.clone(),
+        WeightMethod::Template,
+    )
+    .unwrap();
+    let binding = h.binding();
+    let pose = named_pose("fist").unwrap();
+    let mut out = Vec::new();
+    let mut g = c.benchmark_group("pose");
+    g.bench_function("lbs_fk_plus_18514_vertices", |b| {
+        b.iter(|| {
+            let tr = link_transforms(&h.skeleton, black_box(&pose));
+            binding.linear_into(&tr, &mut out);
+            black_box(out.len())
+        })
+    });
+    g.bench_function("dqs_fk_plus_18514_vertices", |b| {
+        b.iter(|| {
+            let tr = link_transforms(&h.skeleton, black_box(&pose));
+            black_box(binding.dual_quaternion(&tr).len())
+        })
+    });
+    g.sample_size(10);
+    g.bench_function("bone_heat_weights_18514_vertices", |b| {
+        b.iter(|| {
+            bone_heat_weights(black_box(&h.skin), &h.skeleton, &HeatOptions::default()).unwrap()
+        })
+    });
+    g.finish();
+}
+
+criterion_group!(benches, pose_bench);
+criterion_main!(benches);
