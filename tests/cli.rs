@@ -26,7 +26,6 @@ fn error_line(o: &Output) -> String {
 #[test]
 fn stages_not_built_yet_say_so_and_exit_2() {
     for args in [
-        &["pose", "OUT", "--pose", "p.toml", "--out", "h.glb"][..],
         &["grasp", "scene.toml", "--out", "G"][..],
         &["batch", "SUBJECTS", "--out", "B"][..],
     ] {
@@ -164,6 +163,41 @@ fn reconstruct_and_validate_a_simulated_subject() {
     let report: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap();
     assert_eq!(report["skin"]["inverted_faces"], 0);
+    // Section 3.7 and issue 7: the tetrahedral mesh and the skinned hand.
+    assert_eq!(report["tet"]["inverted"], 0);
+    assert!(
+        report["tet"]["volume_error_percent"]
+            .as_f64()
+            .unwrap()
+            .abs()
+            < 1.0
+    );
+    for f in ["tet.vtk", "tet.msh", "hand.glb"] {
+        assert!(out.join(f).is_file(), "{f}");
+    }
+    // The hand poses from the reconstruction folder: a built-in pose into a GLB.
+    let fist = dir.path().join("fist.glb");
+    let p = ergohand(&[
+        "pose",
+        o,
+        "--pose",
+        "fist",
+        "--out",
+        fist.to_str().unwrap(),
+        "-q",
+    ]);
+    assert!(p.status.success(), "{}", stderr(&p));
+    assert!(fist.is_file());
+    let p = ergohand(&[
+        "pose",
+        o,
+        "--pose",
+        "no-such-pose",
+        "--out",
+        fist.to_str().unwrap(),
+    ]);
+    assert_eq!(p.status.code(), Some(1));
+    assert!(error_line(&p).contains("no-such-pose"), "{}", stderr(&p));
     assert!(report["skin"]["posture_deg"]["I_MCP"].is_array());
     assert!(report["skin"]["section_3_6_shift_mm"]["I_PIP"].is_f64());
 
