@@ -149,7 +149,14 @@ fn main() -> ExitCode {
             cli::validate(&subject_dir, &model, &report, &log).map(|_| ())
         }
         Command::Pose { .. } => return not_built("pose", 7),
-        Command::Grasp { .. } => return not_built("grasp", 8),
+        Command::Grasp { scene, model, out } => {
+            ergohand::grasp::grasp_command(&scene, model.as_deref(), &out, log.quiet()).map(|r| {
+                log.info(format!(
+                    "grasp: force closure {}, epsilon {:.4}, volume {:.3e}, holds {}, contact {:.0} mm²; wrote {}",
+                    r.force_closure, r.epsilon, r.volume, r.holds, r.total_contact_area_mm2, out.display()
+                ))
+            })
+        }
         Command::Batch { .. } => return not_built("batch", 9),
     };
     match result {
