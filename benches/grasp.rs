@@ -28,7 +28,7 @@ fn grasp_bench(c: &mut Criterion) {
     eprintln!("bottle: {} triangles", mesh.n_faces());
     let part = PartShape::new(mesh).unwrap().0;
     let plan = grasp_plan(GraspType::Power);
-    let approach = pose_from([0.0, -48.0, 90.0], [-90.0, -90.0, 0.0]);
+    let approach = pose_from([0.0, -36.0, 90.0], [-90.0, -90.0, 0.0]);
     let root = root_for(&hand, &Isometry3::identity(), &approach);
     let opts = AutograspOptions::default();
     let g = autograsp(&hand, &part, &plan, root, &opts).unwrap();
