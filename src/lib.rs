@@ -17,6 +17,7 @@ pub mod anatomy;
 pub mod cli;
 pub mod error;
 pub mod geometry;
+pub mod grasp;
 pub mod io;
 pub mod link;
 pub mod mocap;

@@ -169,7 +169,14 @@ fn main() -> ExitCode {
         Command::Pose { model, pose, out } => {
             cli::pose(&model, &pose.to_string_lossy(), &out, &log)
         }
-        Command::Grasp { .. } => return not_built("grasp", 8),
+        Command::Grasp { scene, model, out } => {
+            ergohand::grasp::grasp_command(&scene, model.as_deref(), &out, log.quiet()).map(|r| {
+                log.info(format!(
+                    "grasp: force closure {}, epsilon {:.4}, volume {:.3e}, holds {}, contact {:.0} mm²; wrote {}",
+                    r.force_closure, r.epsilon, r.volume, r.holds, r.total_contact_area_mm2, out.display()
+                ))
+            })
+        }
         Command::Batch { .. } => return not_built("batch", 9),
     };
     match result {

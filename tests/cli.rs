@@ -26,7 +26,6 @@ fn error_line(o: &Output) -> String {
 #[test]
 fn stages_not_built_yet_say_so_and_exit_2() {
     for args in [
-        &["grasp", "scene.toml", "--out", "G"][..],
         &["batch", "SUBJECTS", "--out", "B"][..],
     ] {
         let o = ergohand(args);

@@ -41,6 +41,8 @@ fn simulated_hand(seed: u64, method: WeightMethod) -> IndividualHand {
         &s.trials["reference"],
         &s.subject.dimensions,
         s.subject.marker_offset_mm,
+        Some(&model.skeleton),
+        &crate::skin::pipeline::SkinOptions::default(),
     )
     .unwrap();
     IndividualHand::from_skin(&t, fit.high, model.skeleton, method).unwrap()

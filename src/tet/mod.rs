@@ -220,6 +220,8 @@ mod tests {
                 &s.trials["reference"],
                 &s.subject.dimensions,
                 s.subject.marker_offset_mm,
+                None,
+                &crate::skin::pipeline::SkinOptions::default(),
             )
             .unwrap();
             let (mesh, r) = subject_tet_mesh(t, m, &fit.high).unwrap();

@@ -1,0 +1,624 @@
+//! Closing the hand on the part: GraspIt's autograsp (Miller & Allen 2004, "GraspIt!", IEEE RAM
+//! 11(4), section "Auto-grasp"), and a placement search over wrist poses for `approach = "auto"`
+//! (after the optimisation-based grasp posture generation of Endo et al.: sample, close,
+//! score by the grasp quality, keep the best).
+//!
+//! Each grasp type has a preshape and a closed posture ([`grasp_plan`], degrees within
+//! [`joint_limits_deg`]); every active joint moves along the straight line between the two in a
+//! closing parameter `t ∈ [0, 1]`. Fingers close independently in steps of `t`; a step that
+//! pushes a link deeper than `max_depth_mm` into the part is halved until it is shorter than
+//! `min_step`; a link that touches (within the contact tolerance) stops its own joint and every
+//! joint proximal to it in the digit, while the joints distal to it keep closing. Joints that
+//! reach their closed posture with their link never touching are reported.
+
+use super::contact::{ContactOptions, PartShape};
+use super::hand::PosableHand;
+use super::scene::GraspType;
+use crate::anatomy::{Finger, Joint, Link};
+use crate::error::{Error, Result};
+use crate::geometry::{Point, Vec3};
+use crate::rng::Rng;
+use crate::skeleton::limits::joint_limits_deg;
+use crate::skeleton::Pose;
+use nalgebra::{Isometry3, Rotation3, Translation3, UnitQuaternion};
+
+/// Preshape and closed posture of a grasp type, radians, and which joints close.
+#[derive(Clone, Debug, PartialEq)]
+pub struct GraspPlan {
+    /// Angles at `t = 0`.
+    pub preshape: [[f64; 3]; 16],
+    /// Angles at `t = 1`.
+    pub closed: [[f64; 3]; 16],
+    /// Joints that close.
+    pub active: [bool; 16],
+}
+
+/// The plan of a grasp type (degrees chosen within the anatomical limits; the wrist stays put).
+pub fn grasp_plan(kind: GraspType) -> GraspPlan {
+    let mut pre = [[0.0; 3]; 16];
+    let mut closed = [[0.0; 3]; 16];
+    let mut active = [false; 16];
+    let set = |a: &mut [[f64; 3]; 16], j: Joint, d: [f64; 3]| a[j.index()] = d;
+    let tucked = [[60.0, 0.0, 0.0], [95.0, 0.0, 0.0], [60.0, 0.0, 0.0]];
+    let fingers = [Finger::Index, Finger::Middle, Finger::Ring, Finger::Little];
+    let (thumb_pre, thumb_closed, closing, f_pre, f_closed): (
+        [[f64; 3]; 3],
+        [[f64; 3]; 3],
+        Vec<Finger>,
+        [[f64; 3]; 3],
+        [[f64; 3]; 3],
+    ) = match kind {
+        GraspType::Power => (
+            [[-20.0, 0.0, 0.0], [0.0; 3], [0.0; 3]],
+            [[40.0, 55.0, 20.0], [55.0, 0.0, 0.0], [75.0, 0.0, 0.0]],
+            fingers.to_vec(),
+            [[0.0; 3]; 3],
+            [[88.0, 0.0, 0.0], [105.0, 0.0, 0.0], [80.0, 0.0, 0.0]],
+        ),
+        GraspType::Precision | GraspType::Pinch | GraspType::Tripod => (
+            [[10.0, 50.0, 10.0], [0.0; 3], [0.0; 3]],
+            [[40.0, 58.0, 25.0], [45.0, 0.0, 0.0], [45.0, 0.0, 0.0]],
+            match kind {
+                GraspType::Precision => fingers.to_vec(),
+                GraspType::Pinch => vec![Finger::Index],
+                _ => vec![Finger::Index, Finger::Middle],
+            },
+            [[15.0, 0.0, 0.0], [10.0, 0.0, 0.0], [0.0; 3]],
+            [[75.0, 0.0, 0.0], [70.0, 0.0, 0.0], [40.0, 0.0, 0.0]],
+        ),
+        GraspType::Lateral => (
+            [[-10.0, 0.0, 0.0], [0.0; 3], [0.0; 3]],
+            [[40.0, -10.0, 10.0], [50.0, 0.0, 0.0], [60.0, 0.0, 0.0]],
+            vec![Finger::Index],
+            [[30.0, 0.0, 0.0], [60.0, 0.0, 0.0], [30.0, 0.0, 0.0]],
+            [[80.0, 0.0, 0.0], [100.0, 0.0, 0.0], [70.0, 0.0, 0.0]],
+        ),
+    };
+    for (k, j) in Finger::Thumb.joints().into_iter().enumerate() {
+        set(&mut pre, j, thumb_pre[k]);
+        set(&mut closed, j, thumb_closed[k]);
+        active[j.index()] = true;
+    }
+    for f in fingers {
+        for (k, j) in f.joints().into_iter().enumerate() {
+            if closing.contains(&f) {
+                set(&mut pre, j, f_pre[k]);
+                set(&mut closed, j, f_closed[k]);
+                active[j.index()] = true;
+            } else {
+                set(&mut pre, j, tucked[k]);
+                set(&mut closed, j, tucked[k]);
+            }
+        }
+    }
+    let clamp = |a: [[f64; 3]; 16]| {
+        let mut out = a;
+        for j in Joint::ALL {
+            for (d, [lo, hi]) in joint_limits_deg(j).into_iter().enumerate() {
+                out[j.index()][d] = a[j.index()][d].clamp(lo, hi).to_radians();
+            }
+        }
+        out
+    };
+    GraspPlan {
+        preshape: clamp(pre),
+        closed: clamp(closed),
+        active,
+    }
+}
+
+/// The hand's grasp frame in the reference posture: origin on the palmar skin below the palm's
+/// centre, z out of the palm (palmar), y from the wrist toward the middle finger, x = y × z.
+pub fn grasp_frame(hand: &dyn PosableHand) -> Isometry3<f64> {
+    let sk = hand.skeleton();
+    let palmar = -sk.joint(Joint::Wrist).y();
+    let mcp = [Joint::IMcp, Joint::MMcp, Joint::RMcp, Joint::LMcp];
+    let centre = Point::from(
+        (mcp.iter().map(|&j| sk.centre(j).coords).sum::<Vec3>() / 4.0
+            + sk.centre(Joint::Wrist).coords)
+            / 2.0,
+    );
+    let along = sk.centre(Joint::MMcp) - sk.centre(Joint::Wrist);
+    let y = (along - palmar * palmar.dot(&along)).normalize();
+    let x = y.cross(&palmar);
+    // The palm's skin: the furthest palm vertex along the palmar direction near the centre.
+    let mesh = hand.rest_mesh();
+    let links = hand.vertex_link();
+    let mut depth = 0.0f64;
+    for (v, &l) in mesh.vertices.iter().zip(links) {
+        if l == Link::Palm.index() {
+            let r = v - centre;
+            let lateral = r - palmar * palmar.dot(&r);
+            if lateral.norm() < 15.0 {
+                depth = depth.max(palmar.dot(&r));
+            }
+        }
+    }
+    let rot = Rotation3::from_basis_unchecked(&[x, y, palmar]);
+    Isometry3::from_parts(
+        Translation3::from((centre + palmar * depth).coords),
+        UnitQuaternion::from_rotation_matrix(&rot),
+    )
+}
+
+/// Settings of [`autograsp`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct AutograspOptions {
+    /// Closing step in `t`.
+    pub step: f64,
+    /// Steps are halved down to this before a penetrating link stops its chain.
+    pub min_step: f64,
+    /// Deepest penetration accepted, mm.
+    pub max_depth_mm: f64,
+    /// Contact detection (its tolerance decides "touching").
+    pub contact: ContactOptions,
+    /// Use every `stride`-th skin vertex for the closing checks (1 = all).
+    pub stride: usize,
+}
+
+impl Default for AutograspOptions {
+    fn default() -> Self {
+        AutograspOptions {
+            step: 0.04,
+            min_step: 0.005,
+            max_depth_mm: 0.8,
+            contact: ContactOptions::default(),
+            stride: 1,
+        }
+    }
+}
+
+/// Result of [`autograsp`].
+#[derive(Clone, Debug, PartialEq)]
+pub struct Autograsp {
+    /// The final posture (root = the approach).
+    pub pose: Pose,
+    /// Closing parameter reached by each joint.
+    pub t: [f64; 16],
+    /// Active joints whose link never touched the part (by name).
+    pub untouched: Vec<String>,
+    /// Posture evaluations made.
+    pub evaluations: usize,
+}
+
+/// Pose of the forearm that puts the hand's grasp frame at `approach` in the part's frame,
+/// the part being at `part_pose` in the world.
+pub fn root_for(
+    hand: &dyn PosableHand,
+    part_pose: &Isometry3<f64>,
+    approach: &Isometry3<f64>,
+) -> Isometry3<f64> {
+    part_pose * approach * grasp_frame(hand).inverse()
+}
+
+fn pose_at(plan: &GraspPlan, t: &[f64; 16], root: Isometry3<f64>) -> Pose {
+    let mut p = Pose {
+        angles: plan.preshape,
+        root,
+    };
+    for j in 0..16 {
+        for d in 0..3 {
+            p.angles[j][d] = plan.preshape[j][d] + t[j] * (plan.closed[j][d] - plan.preshape[j][d]);
+        }
+    }
+    p
+}
+
+/// The digit's links (thumb: metacarpal, proximal, distal).
+fn digit_links(f: Finger) -> [Link; 3] {
+    let j = f.joints();
+    [j[0].child_link(), j[1].child_link(), j[2].child_link()]
+}
+
+/// Deepest penetration (mm, positive inside) and whether it touches, per link, of the vertices in `which`.
+fn link_state(
+    part: &PartShape,
+    pts: &[Point],
+    links: &[usize],
+    which: &[usize],
+    tol: f64,
+    search: f64,
+) -> Vec<(f64, bool)> {
+    let mut out = vec![(f64::MIN, false); Link::ALL.len()];
+    for &i in which {
+        if let Some((d, _, _)) = part.query(&pts[i], search) {
+            let l = links[i];
+            out[l].0 = out[l].0.max(-d);
+            if d <= tol {
+                out[l].1 = true;
+            }
+        }
+    }
+    out
+}
+
+/// GraspIt autograsp from `root` (see the module documentation). Errors when the hand
+/// starts inside the part (naming the deepest link).
+pub fn autograsp(
+    hand: &dyn PosableHand,
+    part: &PartShape,
+    plan: &GraspPlan,
+    root: Isometry3<f64>,
+    opts: &AutograspOptions,
+) -> Result<Autograsp> {
+    let links = hand.vertex_link();
+    let n = links.len();
+    let stride = opts.stride.max(1);
+    let mut t = [0.0; 16];
+    let mut pts = Vec::with_capacity(n);
+    let mut evaluations = 1;
+    hand.pose_vertices(&pose_at(plan, &t, root), &mut pts);
+    let all: Vec<usize> = (0..n).step_by(stride).collect();
+    let start = link_state(
+        part,
+        &pts,
+        links,
+        &all,
+        opts.contact.tolerance_mm,
+        opts.contact.search_mm,
+    );
+    if let Some((l, (d, _))) = start
+        .iter()
+        .enumerate()
+        .filter(|(_, s)| s.0 > 2.0)
+        .max_by(|a, b| a.1 .0.total_cmp(&b.1 .0))
+    {
+        return Err(Error::invalid(format!(
+            "the hand starts inside the part: link {} is {d:.1} mm deep at the approach; move the approach away from the part",
+            Link::ALL[l].name()
+        )));
+    }
+    let mut touched = [false; 17];
+    for (l, s) in start.iter().enumerate() {
+        touched[l] = s.1;
+    }
+    for f in Finger::ALL {
+        let joints = f.joints();
+        let dl = digit_links(f);
+        let which: Vec<usize> = (0..n)
+            .step_by(stride)
+            .filter(|&i| dl.iter().any(|l| l.index() == links[i]))
+            .collect();
+        let mut moving: Vec<bool> = joints.iter().map(|j| plan.active[j.index()]).collect();
+        // A link touching already in the preshape stops its chain.
+        for k in 0..3 {
+            if touched[dl[k].index()] {
+                for m in moving.iter_mut().take(k + 1) {
+                    *m = false;
+                }
+            }
+        }
+        let mut dt = opts.step;
+        let mut guard = 0;
+        while moving.iter().any(|&m| m) && guard < 10_000 {
+            guard += 1;
+            let mut t2 = t;
+            for k in 0..3 {
+                if moving[k] {
+                    t2[joints[k].index()] = (t[joints[k].index()] + dt).min(1.0);
+                }
+            }
+            hand.pose_vertices(&pose_at(plan, &t2, root), &mut pts);
+            evaluations += 1;
+            let st = link_state(
+                part,
+                &pts,
+                links,
+                &which,
+                opts.contact.tolerance_mm,
+                opts.contact.search_mm,
+            );
+            let deepest = (0..3)
+                .filter(|&k| st[dl[k].index()].0 > opts.max_depth_mm)
+                .max();
+            if let Some(k) = deepest {
+                if dt > opts.min_step {
+                    dt *= 0.5;
+                    continue;
+                }
+                // Cannot get closer without passing through: the chain up to k stops here.
+                for m in moving.iter_mut().take(k + 1) {
+                    *m = false;
+                }
+                touched[dl[k].index()] = true;
+                dt = opts.step;
+                continue;
+            }
+            t = t2;
+            for k in 0..3 {
+                if st[dl[k].index()].1 {
+                    touched[dl[k].index()] = true;
+                    for m in moving.iter_mut().take(k + 1) {
+                        *m = false;
+                    }
+                }
+            }
+            for k in 0..3 {
+                if moving[k] && t[joints[k].index()] >= 1.0 {
+                    moving[k] = false;
+                }
+            }
+            dt = opts.step;
+        }
+    }
+    let untouched = Joint::ALL
+        .iter()
+        .filter(|j| plan.active[j.index()] && !touched[j.child_link().index()])
+        .map(|j| j.name().to_string())
+        .collect();
+    Ok(Autograsp {
+        pose: pose_at(plan, &t, root),
+        t,
+        untouched,
+        evaluations,
+    })
+}
+
+/// A candidate placement: the grasp frame looks along `-dir` at the part from just outside its
+/// surface, rolled by `roll` about its z axis.
+pub fn placement(part: &PartShape, dir: &Vec3, roll: f64, gap_mm: f64) -> Option<Isometry3<f64>> {
+    use parry3d_f64::query::{Ray, RayCast};
+    let d = dir.try_normalize(1e-12)?;
+    let far = part.centre_of_mass + d * (part.max_radius + 50.0);
+    let ray = Ray::new(
+        super::contact::pv(&far),
+        super::contact::pv(&Point::from(-d)),
+    );
+    let toi = part.shape.cast_local_ray(&ray, f64::MAX, false)?;
+    let hit = far - d * toi;
+    let z = -d;
+    let helper = if z.z.abs() < 0.9 {
+        Vec3::z()
+    } else {
+        Vec3::x()
+    };
+    let x0 = helper.cross(&z).normalize();
+    let y0 = z.cross(&x0);
+    let (s, c) = roll.sin_cos();
+    let x = x0 * c + y0 * s;
+    let y = z.cross(&x);
+    let rot = Rotation3::from_basis_unchecked(&[x, y, z]);
+    Some(Isometry3::from_parts(
+        Translation3::from((hit + d * gap_mm).coords),
+        UnitQuaternion::from_rotation_matrix(&rot),
+    ))
+}
+
+/// Result of [`placement_search`].
+#[derive(Clone, Debug)]
+pub struct PlacementResult {
+    /// Best approach (grasp frame in the part's world frame).
+    pub approach: Isometry3<f64>,
+    /// Its epsilon and volume.
+    pub epsilon: f64,
+    /// Its volume quality.
+    pub volume: f64,
+    /// Candidates evaluated.
+    pub evaluated: usize,
+}
+
+/// Placement search: `candidates` seeded random placements (directions uniform on the sphere,
+/// rolls uniform), each closed by a coarse autograsp and scored by (epsilon, volume, contact
+/// area); stops early at `time_limit_s`. Deterministic for a seed when the time bound is not
+/// reached.
+#[allow(clippy::too_many_arguments)]
+pub fn placement_search(
+    hand: &dyn PosableHand,
+    part: &PartShape,
+    plan: &GraspPlan,
+    mu: f64,
+    seed: u64,
+    candidates: usize,
+    time_limit_s: f64,
+    quiet: bool,
+) -> Option<PlacementResult> {
+    use rayon::prelude::*;
+    let mut rng = Rng::new(seed).fork("placement");
+    let cand: Vec<(Vec3, f64)> = (0..candidates)
+        .map(|_| {
+            (
+                rng.unit_vector(),
+                rng.range(0.0, 2.0 * std::f64::consts::PI),
+            )
+        })
+        .collect();
+    let gf = grasp_frame(hand);
+    let coarse = AutograspOptions {
+        step: 0.1,
+        min_step: 0.05,
+        max_depth_mm: 2.0,
+        stride: 7,
+        ..AutograspOptions::default()
+    };
+    let bar = if quiet {
+        indicatif::ProgressBar::hidden()
+    } else {
+        indicatif::ProgressBar::new(candidates as u64)
+    };
+    let started = std::time::Instant::now();
+    let areas = super::contact::vertex_areas(hand.rest_mesh());
+    let scored: Vec<Option<(usize, f64, f64, f64)>> = cand
+        .par_iter()
+        .enumerate()
+        .map(|(i, (d, roll))| {
+            bar.inc(1);
+            if started.elapsed().as_secs_f64() > time_limit_s {
+                return None;
+            }
+            let a = placement(part, d, *roll, 3.0)?;
+            let root = a * gf.inverse();
+            let g = autograsp(hand, part, plan, root, &coarse).ok()?;
+            let mut pts = Vec::new();
+            hand.pose_vertices(&g.pose, &mut pts);
+            let c =
+                super::contact::contacts(part, &pts, hand.vertex_link(), &areas, &coarse.contact);
+            let q = super::quality::grasp_quality(
+                &c.contacts,
+                mu,
+                &part.centre_of_mass,
+                part.max_radius,
+            );
+            Some((i, q.epsilon, q.volume, c.total_area_mm2()))
+        })
+        .collect();
+    bar.finish_and_clear();
+    let evaluated = scored.iter().filter(|s| s.is_some()).count();
+    let best = scored.into_iter().flatten().max_by(|a, b| {
+        a.1.total_cmp(&b.1)
+            .then(a.2.total_cmp(&b.2))
+            .then(a.3.total_cmp(&b.3))
+            .then(b.0.cmp(&a.0))
+    })?;
+    let (d, roll) = cand[best.0];
+    Some(PlacementResult {
+        approach: placement(part, &d, roll, 3.0)?,
+        epsilon: best.1,
+        volume: best.2,
+        evaluated,
+    })
+}
+
+/// The closing targets of the active joints, degrees, by joint name.
+pub fn plan_deg(plan: &GraspPlan) -> Vec<(String, [f64; 3])> {
+    Joint::ALL
+        .iter()
+        .filter(|j| plan.active[j.index()])
+        .map(|j| {
+            (
+                j.name().to_string(),
+                plan.closed[j.index()].map(f64::to_degrees),
+            )
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::anatomy::Side;
+    use crate::grasp::contact::{contacts, vertex_areas};
+    use crate::grasp::hand::RigidHand;
+    use crate::grasp::parts::Part;
+    use crate::skeleton::clamp_pose;
+    use std::sync::OnceLock;
+
+    fn hand() -> &'static RigidHand {
+        static H: OnceLock<RigidHand> = OnceLock::new();
+        H.get_or_init(|| RigidHand::template(Side::Right).unwrap())
+    }
+
+    fn bottle() -> &'static PartShape {
+        static P: OnceLock<PartShape> = OnceLock::new();
+        P.get_or_init(|| PartShape::new(Part::Bottle.mesh().unwrap()).unwrap().0)
+    }
+
+    fn side_approach() -> Isometry3<f64> {
+        crate::grasp::scene::pose_from([0.0, -36.0, 90.0], [-90.0, -90.0, 0.0])
+    }
+
+    #[test]
+    fn plans_are_within_limits() {
+        for g in [
+            GraspType::Power,
+            GraspType::Precision,
+            GraspType::Pinch,
+            GraspType::Tripod,
+            GraspType::Lateral,
+        ] {
+            let p = grasp_plan(g);
+            for a in [p.preshape, p.closed] {
+                let (_, v) = clamp_pose(&Pose {
+                    angles: a,
+                    root: Isometry3::identity(),
+                });
+                assert!(v.is_empty(), "{g:?}: {v:?}");
+            }
+        }
+    }
+
+    #[test]
+    fn grasp_frame_faces_palmar_from_the_palm() {
+        let h = hand();
+        let g = grasp_frame(h);
+        let z = g.rotation * Vec3::z();
+        // The palm skin lies behind the frame's origin, none of it in front by more than 1 mm.
+        let palm: Vec<&Point> = h
+            .mesh
+            .vertices
+            .iter()
+            .zip(&h.links)
+            .filter(|(_, &l)| l == Link::Palm.index())
+            .map(|(p, _)| p)
+            .collect();
+        let near: Vec<f64> = palm
+            .iter()
+            .filter(|p| {
+                let r = **p - Point::from(g.translation.vector);
+                (r - z * z.dot(&r)).norm() < 10.0
+            })
+            .map(|p| z.dot(&(**p - Point::from(g.translation.vector))))
+            .collect();
+        assert!(!near.is_empty());
+        assert!(near.iter().all(|&d| d < 1.0), "{near:?}");
+        assert!(near.iter().any(|&d| d > -3.0));
+    }
+
+    #[test]
+    fn power_grasp_of_bottle_touches_without_passing_through() {
+        let h = hand();
+        let part = bottle();
+        let root = root_for(h, &Isometry3::identity(), &side_approach());
+        let opts = AutograspOptions::default();
+        let g = autograsp(h, part, &grasp_plan(GraspType::Power), root, &opts).unwrap();
+        let mut pts = Vec::new();
+        h.pose_vertices(&g.pose, &mut pts);
+        let c = contacts(part, &pts, &h.links, &vertex_areas(&h.mesh), &opts.contact);
+        // The palm is placed by the approach, not closed: allow half a millimetre beyond the
+        // closing bound.
+        assert!(
+            c.max_depth_mm() <= opts.max_depth_mm + 0.5,
+            "{}",
+            c.max_depth_mm()
+        );
+        // Every finger's distal link wraps onto the bottle, and touched joints are not reported.
+        let touching: Vec<&str> = Link::ALL
+            .iter()
+            .filter(|l| c.touches(l.index()))
+            .map(|l| l.name())
+            .collect();
+        assert!(touching.len() >= 5, "{touching:?}");
+        for j in &g.untouched {
+            let l = Joint::from_name(j).unwrap().child_link();
+            assert!(!c.touches(l.index()), "{j} reported untouched but touches");
+        }
+    }
+
+    #[test]
+    fn hand_inside_the_part_is_an_error() {
+        let h = hand();
+        let inside = crate::grasp::scene::pose_from([0.0, 0.0, 90.0], [-90.0, -90.0, 0.0]);
+        let root = root_for(h, &Isometry3::identity(), &inside);
+        let e = autograsp(
+            h,
+            bottle(),
+            &grasp_plan(GraspType::Power),
+            root,
+            &AutograspOptions::default(),
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(e.contains("starts inside the part"), "{e}");
+    }
+
+    #[test]
+    fn far_approach_reports_every_active_joint_untouched() {
+        let h = hand();
+        let far = crate::grasp::scene::pose_from([0.0, -400.0, 90.0], [-90.0, -90.0, 0.0]);
+        let root = root_for(h, &Isometry3::identity(), &far);
+        let plan = grasp_plan(GraspType::Pinch);
+        let g = autograsp(h, bottle(), &plan, root, &AutograspOptions::default()).unwrap();
+        let active = plan.active.iter().filter(|&&a| a).count();
+        assert_eq!(g.untouched.len(), active);
+        assert!(g.t.iter().zip(plan.active).all(|(&t, a)| !a || t == 1.0));
+    }
+}

@@ -1,0 +1,369 @@
+//! `SCENE.toml`: a part, its pose, friction and mass, the hand and the grasp to try
+//! (issue 8; spec section 4, `ergohand grasp SCENE.toml --model OUT --out DIR`).
+//!
+//! ```toml
+//! [part]
+//! file = "bottle.stl"            # OBJ, STL, glTF/GLB; relative to this file's folder
+//! units = "mm"                   # the file's length unit: mm, cm, m, in
+//! translation_mm = [0, 0, 0]     # pose of the part in the world (optional, default identity)
+//! rotation_deg = [0, 0, 0]       # fixed-axis x, then y, then z rotations, degrees (optional)
+//! friction = 0.5                 # Coulomb coefficient between skin and part
+//! mass_g = 350                   # grams
+//!
+//! [hand]                         # optional table
+//! model = "../out"               # a `reconstruct` output folder; omitted: the template hand
+//! side = "right"                 # right | left (default right)
+//!
+//! [grasp]
+//! type = "power"                 # power | precision | pinch | tripod | lateral
+//! approach = "auto"              # or a table: the hand's grasp frame in the part's frame:
+//! # approach = { translation_mm = [0, -55, 100], rotation_deg = [90, 0, 0] }
+//! seed = 1                       # placement search (approach = "auto"): seed,
+//! candidates = 1000              #   number of candidate placements,
+//! time_limit_s = 15              #   and a bound on its time
+//! ```
+//!
+//! The hand's grasp frame ([`super::autograsp::grasp_frame`]) has its origin on the palm
+//! surface, z out of the palm (palmar), y toward the fingers. Unknown keys are errors; every
+//! error names the file and the key.
+
+use crate::anatomy::Side;
+use crate::error::{Error, Result};
+use crate::io::Units;
+use nalgebra::{Isometry3, Translation3, UnitQuaternion};
+use serde::Deserialize;
+use std::path::{Path, PathBuf};
+
+/// Grasp taxonomy entries supported (after Feix et al. 2016, "The GRASP taxonomy").
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Deserialize, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum GraspType {
+    /// Whole-hand wrap: all fingers and the thumb close around the part.
+    Power,
+    /// Fingertips of the thumb and the four fingers.
+    Precision,
+    /// Thumb and index fingertips.
+    Pinch,
+    /// Thumb, index and middle fingertips.
+    Tripod,
+    /// Thumb pad against the side of the curled index.
+    Lateral,
+}
+
+impl GraspType {
+    /// Lower-case name as in scene files.
+    pub fn name(self) -> &'static str {
+        match self {
+            GraspType::Power => "power",
+            GraspType::Precision => "precision",
+            GraspType::Pinch => "pinch",
+            GraspType::Tripod => "tripod",
+            GraspType::Lateral => "lateral",
+        }
+    }
+
+    /// Parse a scene file's name.
+    pub fn from_name(s: &str) -> Option<GraspType> {
+        [
+            GraspType::Power,
+            GraspType::Precision,
+            GraspType::Pinch,
+            GraspType::Tripod,
+            GraspType::Lateral,
+        ]
+        .into_iter()
+        .find(|g| g.name() == s)
+    }
+}
+
+/// Where the hand starts.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Approach {
+    /// Placement search.
+    Auto,
+    /// The grasp frame of the hand in the part's frame.
+    Given(Isometry3<f64>),
+}
+
+/// A parsed scene, paths resolved, lengths in mm.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Scene {
+    /// The scene file.
+    pub path: PathBuf,
+    /// The part's mesh file.
+    pub part_file: PathBuf,
+    /// Its unit.
+    pub part_units: Units,
+    /// Pose of the part in the world.
+    pub part_pose: Isometry3<f64>,
+    /// Coulomb friction coefficient.
+    pub friction: f64,
+    /// Mass, kg.
+    pub mass_kg: f64,
+    /// A `reconstruct` output folder, or `None` for the template hand.
+    pub hand_model: Option<PathBuf>,
+    /// Which hand.
+    pub side: Side,
+    /// Grasp type.
+    pub grasp: GraspType,
+    /// Approach.
+    pub approach: Approach,
+    /// Placement search seed.
+    pub seed: u64,
+    /// Placement search candidates.
+    pub candidates: usize,
+    /// Placement search time bound, s.
+    pub time_limit_s: f64,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawScene {
+    part: RawPart,
+    hand: Option<RawHand>,
+    grasp: RawGrasp,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawPart {
+    file: String,
+    units: String,
+    translation_mm: Option<[f64; 3]>,
+    rotation_deg: Option<[f64; 3]>,
+    friction: f64,
+    mass_g: f64,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawHand {
+    model: Option<String>,
+    side: Option<String>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawGrasp {
+    #[serde(rename = "type")]
+    kind: String,
+    approach: toml::Value,
+    seed: Option<u64>,
+    candidates: Option<usize>,
+    time_limit_s: Option<f64>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawPose {
+    translation_mm: [f64; 3],
+    rotation_deg: Option<[f64; 3]>,
+}
+
+/// Rigid pose from a translation (mm) and fixed-axis x-y-z rotations (degrees):
+/// `R = Rz · Ry · Rx`.
+pub fn pose_from(translation_mm: [f64; 3], rotation_deg: [f64; 3]) -> Isometry3<f64> {
+    let r = rotation_deg.map(f64::to_radians);
+    Isometry3::from_parts(
+        Translation3::new(translation_mm[0], translation_mm[1], translation_mm[2]),
+        UnitQuaternion::from_euler_angles(r[0], r[1], r[2]),
+    )
+}
+
+fn finite(path: &Path, key: &str, v: &[f64]) -> Result<()> {
+    if v.iter().all(|x| x.is_finite()) {
+        Ok(())
+    } else {
+        Err(Error::input(
+            path,
+            format!("'{key}' must be finite numbers"),
+        ))
+    }
+}
+
+/// Read and check a scene file.
+pub fn read_scene(path: &Path) -> Result<Scene> {
+    let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+    parse_scene(&text, path)
+}
+
+/// Parse scene `text` read from `path` (relative paths resolve against its folder).
+pub fn parse_scene(text: &str, path: &Path) -> Result<Scene> {
+    let raw: RawScene = toml::from_str(text).map_err(|e| Error::toml(path, text, &e))?;
+    let dir = path.parent().unwrap_or(Path::new("."));
+    let p = &raw.part;
+    let part_units: Units = p
+        .units
+        .parse()
+        .map_err(|e: String| Error::input(path, format!("part.units: {e}")))?;
+    let t = p.translation_mm.unwrap_or([0.0; 3]);
+    let r = p.rotation_deg.unwrap_or([0.0; 3]);
+    finite(path, "part.translation_mm", &t)?;
+    finite(path, "part.rotation_deg", &r)?;
+    if !(p.friction.is_finite() && p.friction >= 0.0 && p.friction <= 5.0) {
+        return Err(Error::input(
+            path,
+            format!("part.friction = {} must be in [0, 5]", p.friction),
+        ));
+    }
+    if !(p.mass_g.is_finite() && p.mass_g > 0.0 && p.mass_g <= 1e6) {
+        return Err(Error::input(
+            path,
+            format!(
+                "part.mass_g = {} must be a positive mass in grams",
+                p.mass_g
+            ),
+        ));
+    }
+    if p.file.is_empty() {
+        return Err(Error::input(
+            path,
+            "part.file is empty; name the part's mesh file",
+        ));
+    }
+    let (hand_model, side) = match &raw.hand {
+        None => (None, Side::Right),
+        Some(h) => {
+            let side = match h.side.as_deref() {
+                None | Some("right") => Side::Right,
+                Some("left") => Side::Left,
+                Some(s) => {
+                    return Err(Error::input(
+                        path,
+                        format!("hand.side = '{s}' is not 'right' or 'left'"),
+                    ))
+                }
+            };
+            (h.model.as_ref().map(|m| dir.join(m)), side)
+        }
+    };
+    let g = &raw.grasp;
+    let grasp = GraspType::from_name(&g.kind).ok_or_else(|| {
+        Error::input(
+            path,
+            format!(
+                "grasp.type = '{}' is unknown; use power, precision, pinch, tripod or lateral",
+                g.kind
+            ),
+        )
+    })?;
+    let approach = match &g.approach {
+        toml::Value::String(s) if s == "auto" => Approach::Auto,
+        toml::Value::Table(_) => {
+            let rp: RawPose = g
+                .approach
+                .clone()
+                .try_into()
+                .map_err(|e: toml::de::Error| {
+                    Error::input(path, format!("grasp.approach: {}", e.message().replace('\n', " ")))
+                })?;
+            let rot = rp.rotation_deg.unwrap_or([0.0; 3]);
+            finite(path, "grasp.approach.translation_mm", &rp.translation_mm)?;
+            finite(path, "grasp.approach.rotation_deg", &rot)?;
+            Approach::Given(pose_from(rp.translation_mm, rot))
+        }
+        _ => {
+            return Err(Error::input(
+                path,
+                "grasp.approach must be \"auto\" or a table { translation_mm = [..], rotation_deg = [..] }",
+            ))
+        }
+    };
+    let candidates = g.candidates.unwrap_or(1000);
+    if !(1..=1_000_000).contains(&candidates) {
+        return Err(Error::input(
+            path,
+            "grasp.candidates must be in 1..=1000000",
+        ));
+    }
+    let time_limit_s = g.time_limit_s.unwrap_or(15.0);
+    if !(time_limit_s.is_finite() && time_limit_s > 0.0) {
+        return Err(Error::input(
+            path,
+            "grasp.time_limit_s must be a positive number of seconds",
+        ));
+    }
+    Ok(Scene {
+        path: path.to_path_buf(),
+        part_file: dir.join(&p.file),
+        part_units,
+        part_pose: pose_from(t, r),
+        friction: p.friction,
+        mass_kg: p.mass_g / 1000.0,
+        hand_model,
+        side,
+        grasp,
+        approach,
+        seed: g.seed.unwrap_or(1),
+        candidates,
+        time_limit_s,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const OK: &str = r#"
+[part]
+file = "bottle.stl"
+units = "mm"
+friction = 0.5
+mass_g = 350
+[grasp]
+type = "power"
+approach = { translation_mm = [0, -50, 100], rotation_deg = [90, 0, 0] }
+"#;
+
+    #[test]
+    fn parses_and_resolves_relative_paths() {
+        let s = parse_scene(OK, Path::new("/a/b/s.toml")).unwrap();
+        assert_eq!(s.part_file, PathBuf::from("/a/b/bottle.stl"));
+        assert_eq!(s.grasp, GraspType::Power);
+        assert!((s.mass_kg - 0.35).abs() < 1e-12);
+        match s.approach {
+            Approach::Given(iso) => {
+                assert!((iso.translation.vector.y + 50.0).abs() < 1e-12);
+                // Rx(90 deg) maps y to z.
+                let y = iso.rotation * nalgebra::Vector3::y();
+                assert!((y - nalgebra::Vector3::z()).norm() < 1e-12);
+            }
+            Approach::Auto => panic!("given approach read as auto"),
+        }
+    }
+
+    #[test]
+    fn errors_name_file_and_key() {
+        let p = Path::new("s.toml");
+        let cases = [
+            (OK.replace("\"power\"", "\"hook\""), "grasp.type"),
+            (OK.replace("mass_g = 350", "mass_g = -1"), "part.mass_g"),
+            (
+                OK.replace("friction = 0.5", "friction = 0.5\ncolour = 1"),
+                "colour",
+            ),
+            (
+                OK.replace("units = \"mm\"", "units = \"furlong\""),
+                "part.units",
+            ),
+            (
+                OK.replace("rotation_deg = [90, 0, 0] }", "rot = [90, 0, 0] }"),
+                "grasp.approach",
+            ),
+            (
+                OK.replace("{ translation_mm", "{ t")
+                    .replace(", rotation_deg = [90, 0, 0]", ""),
+                "grasp.approach",
+            ),
+            (
+                OK.replace("approach = {", "approach = 3 #"),
+                "grasp.approach",
+            ),
+        ];
+        for (text, key) in cases {
+            let e = parse_scene(&text, p).unwrap_err().to_string();
+            assert!(e.contains("s.toml") && e.contains(key), "{key}: {e}");
+            assert!(!e.contains('\n'), "{e}");
+        }
+    }
+}
