@@ -596,10 +596,16 @@ pub fn demo(out: &Path, log: &Log) -> Result<()> {
     let model = reconstruct(&subject_dir, &model_dir, &Log::new(true))?;
     let link_s = t2.elapsed().as_secs_f64();
     let v = validate(&subject_dir, &model_dir, &report_dir, &Log::new(true))?;
+    crate::pose::pose_command(
+        &model_dir,
+        "fist",
+        &model_dir.join("fist.glb"),
+        &Log::new(true),
+    )?;
     let (acc, surface) = (&v.link, &v.surface);
     if !log.quiet() {
         println!(
-            "ergohand demo: stages run: template, synth, link model, skin (section 3.5), validation"
+            "ergohand demo: stages run: template, synth, link model, skin (sections 3.5-3.6), tetrahedral mesh, skinned hand, pose, validation"
         );
         for h in &t.hands {
             let (lo, hi) = h.mesh.bounds().expect("non-empty template");
@@ -641,7 +647,7 @@ pub fn demo(out: &Path, log: &Log) -> Result<()> {
         };
         let (e3, e1) = (errs(true), errs(false));
         println!(
-            "  link model: 16 joints in {:.2} s, {} warnings; centre error vs truth: 3-DOF median {:.2} mm (max {:.2}), 1-DOF median {:.2} mm (max {:.2})",
+            "  reconstruction (link model, skin, tet, hand) in {:.2} s, {} warnings; link model centre error vs truth: 3-DOF median {:.2} mm (max {:.2}), 1-DOF median {:.2} mm (max {:.2})",
             link_s,
             model.warnings.len(),
             e3[e3.len() / 2],
@@ -665,7 +671,16 @@ pub fn demo(out: &Path, log: &Log) -> Result<()> {
             subject_dir.display()
         );
         println!("    {}", model_dir.join("link_model.json").display());
-        println!("    {}", model_dir.join("skin.obj").display());
+        for f in [
+            "skin.obj",
+            "tet.vtk",
+            "tet.msh",
+            "hand.glb",
+            "fist.glb",
+            "report.json",
+        ] {
+            println!("    {}", model_dir.join(f).display());
+        }
         println!("    {}", report_dir.join("metrics.json").display());
         println!(
             "  done in {:.1} s; open {}",
@@ -673,7 +688,7 @@ pub fn demo(out: &Path, log: &Log) -> Result<()> {
             out.join("template").join("template-right.png").display()
         );
         println!(
-            "  not built yet: skin section 3.6, tetrahedral mesh, pose, grasp, report pictures (see README.md)"
+            "  not in the demo yet: grasp (`ergohand grasp scenes/bottle.toml --out DIR` runs alone), report pictures, batch (see README.md)"
         );
     }
     Ok(())

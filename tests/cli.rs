@@ -25,9 +25,8 @@ fn error_line(o: &Output) -> String {
 
 #[test]
 fn stages_not_built_yet_say_so_and_exit_2() {
-    for args in [
-        &["batch", "SUBJECTS", "--out", "B"][..],
-    ] {
+    {
+        let args = &["batch", "SUBJECTS", "--out", "B"][..];
         let o = ergohand(args);
         assert_eq!(o.status.code(), Some(2), "{args:?}");
         let line = error_line(&o);

@@ -41,13 +41,14 @@ pub fn grasp_plan(kind: GraspType) -> GraspPlan {
     let set = |a: &mut [[f64; 3]; 16], j: Joint, d: [f64; 3]| a[j.index()] = d;
     let tucked = [[60.0, 0.0, 0.0], [95.0, 0.0, 0.0], [60.0, 0.0, 0.0]];
     let fingers = [Finger::Index, Finger::Middle, Finger::Ring, Finger::Little];
-    let (thumb_pre, thumb_closed, closing, f_pre, f_closed): (
+    type Plan = (
         [[f64; 3]; 3],
         [[f64; 3]; 3],
         Vec<Finger>,
         [[f64; 3]; 3],
         [[f64; 3]; 3],
-    ) = match kind {
+    );
+    let (thumb_pre, thumb_closed, closing, f_pre, f_closed): Plan = match kind {
         GraspType::Power => (
             [[-20.0, 0.0, 0.0], [0.0; 3], [0.0; 3]],
             [[40.0, 55.0, 20.0], [55.0, 0.0, 0.0], [75.0, 0.0, 0.0]],
@@ -196,9 +197,9 @@ fn pose_at(plan: &GraspPlan, t: &[f64; 16], root: Isometry3<f64>) -> Pose {
         angles: plan.preshape,
         root,
     };
-    for j in 0..16 {
+    for (j, tj) in t.iter().enumerate().take(16) {
         for d in 0..3 {
-            p.angles[j][d] = plan.preshape[j][d] + t[j] * (plan.closed[j][d] - plan.preshape[j][d]);
+            p.angles[j][d] = plan.preshape[j][d] + tj * (plan.closed[j][d] - plan.preshape[j][d]);
         }
     }
     p

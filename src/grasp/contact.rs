@@ -304,8 +304,7 @@ pub fn contacts_from(
         }
     }
     let mut out = Vec::new();
-    for l in 0..nl {
-        let vs = &touching[l];
+    for (l, vs) in touching.iter().enumerate().take(nl) {
         if vs.is_empty() {
             continue;
         }

@@ -106,7 +106,10 @@ pub fn mesh_sdf(
     hi: Point,
     voxel_mm: f64,
 ) -> Result<TriMesh> {
-    if !(voxel_mm > 0.0) || (0..3).any(|a| !(hi[a] > lo[a])) {
+    if voxel_mm.is_nan()
+        || voxel_mm <= 0.0
+        || (0..3).any(|a| hi[a].is_nan() || lo[a].is_nan() || hi[a] <= lo[a])
+    {
         return Err(Error::invalid("mesh_sdf: empty box or non-positive voxel"));
     }
     let pad = 3;

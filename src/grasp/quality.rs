@@ -130,7 +130,7 @@ fn hyperplane(p: &[Vector6<f64>; D]) -> Option<(Vector6<f64>, f64)> {
     }
     let len = n.norm();
     let scale: f64 = e.iter().flatten().map(|x| x.abs()).fold(0.0, f64::max);
-    if !(len > 1e-24 * scale.powi(5).max(1e-300)) {
+    if len.is_nan() || len <= 1e-24 * scale.powi(5).max(1e-300) {
         return None;
     }
     let n = n / len;
@@ -144,7 +144,11 @@ impl Hull {
     pub fn new(input: &[Vector6<f64>]) -> Option<Hull> {
         // Rank test on the raw points: the joggle must not invent a sixth dimension.
         let scale = input.iter().map(|p| p.amax()).fold(0.0, f64::max);
-        if input.len() < D + 1 || !(scale > 0.0) || initial_simplex(input, 1e-9 * scale).is_none() {
+        if input.len() < D + 1
+            || scale.is_nan()
+            || scale <= 0.0
+            || initial_simplex(input, 1e-9 * scale).is_none()
+        {
             return None;
         }
         [1.0, 1e2, 1e4]
@@ -246,10 +250,7 @@ impl Hull {
                     }
                     let mut verts = h.facets[f].verts;
                     verts[k] = apex;
-                    let (normal, offset) = match h.oriented_plane(&verts) {
-                        Some(x) => x,
-                        None => return None,
-                    };
+                    let (normal, offset) = h.oriented_plane(&verts)?;
                     let id = h.facets.len();
                     let mut neighbours = [usize::MAX; D];
                     neighbours[k] = g;
