@@ -105,7 +105,7 @@ fn skin_stage(c: &mut Criterion) {
             &s.trials["reference"],
             &s.subject.dimensions,
             s.subject.marker_offset_mm,
-            Some(&model.skeleton),
+            Some(&model),
             opts,
         )
         .unwrap()

@@ -254,7 +254,7 @@ pub fn reconstruct_with(
         &reference,
         &subject.dimensions,
         subject.marker_offset_mm,
-        Some(&model.skeleton),
+        Some(&model),
         opts,
     )?;
     // Section 3.6: 1-DOF centres onto the skin's cross-section.

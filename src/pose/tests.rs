@@ -41,7 +41,7 @@ fn simulated_hand(seed: u64, method: WeightMethod) -> IndividualHand {
         &s.trials["reference"],
         &s.subject.dimensions,
         s.subject.marker_offset_mm,
-        Some(&model.skeleton),
+        Some(&model),
         &crate::skin::pipeline::SkinOptions::default(),
     )
     .unwrap();

@@ -79,6 +79,11 @@ pub struct PostureTargets<'a> {
     /// The same markers on the template, in the frame of the template skeleton given to
     /// [`fit_posture`].
     pub template_markers: BTreeMap<String, SkinnedMarker>,
+    /// Per joint ([`Joint::index`]): whether the link model trusts its estimate (no warning:
+    /// enough range of motion, a well-conditioned fit). An untrusted joint's centre and axis
+    /// are left out of the fit, and only the markers orient its link: a hinge axis estimated
+    /// from too little motion can swing the proximal MCP's abduction by 10° and more.
+    pub reliable: [bool; 16],
 }
 
 /// The fitted posture of the template.
@@ -201,7 +206,7 @@ pub fn fit_posture(template: &Skeleton, targets: &PostureTargets) -> Result<Post
             })
     };
     // Targets, once.
-    let mut goal: Vec<(Vec3, Vec3, Option<Vec3>)> = Vec::new();
+    let mut goal: Vec<(Vec3, Option<Vec3>, Option<Vec3>)> = Vec::new();
     for &j in Joint::ALL.iter().filter(|&&j| j != Joint::Wrist) {
         let dm = targets.subject_markers[&distal_marker(j)];
         let um = unit(
@@ -212,7 +217,7 @@ pub fn fit_posture(template: &Skeleton, targets: &PostureTargets) -> Result<Post
             distal_centre(sub, j, dm) - sub.centre(j),
             &format!("the subject's link distal to joint {j}"),
         )?;
-        let x = (j.dof() == 1).then(|| {
+        let x = (j.dof() == 1 && targets.reliable[j.index()]).then(|| {
             let xs = sub.joint(j).x();
             // Axis signs are a convention of each skeleton; align them to the template's.
             if xs.dot(&template.joint(j).x()) < 0.0 {
@@ -221,6 +226,12 @@ pub fn fit_posture(template: &Skeleton, targets: &PostureTargets) -> Result<Post
                 xs
             }
         });
+        // An untrusted centre (its own or the next one) gives no direction.
+        let next_ok = match j.rank() {
+            2 => true,
+            r => targets.reliable[j.finger().expect("digit").joints()[r + 1].index()],
+        };
+        let uc = (targets.reliable[j.index()] && next_ok).then_some(uc);
         goal.push((um, uc, x));
     }
     let residuals = |params: &[f64]| -> DVector<f64> {
@@ -229,9 +240,15 @@ pub fn fit_posture(template: &Skeleton, targets: &PostureTargets) -> Result<Post
         let mut r = Vec::with_capacity(feats.len() * 9 + params.len());
         for ((_, um, uc, x), (gm, gc, gx)) in feats.iter().zip(&goal) {
             r.extend((um - gm).iter());
-            r.extend((uc - gc).iter().map(|v| v * CENTRE_DIRECTION_WEIGHT));
-            if let (Some(x), Some(gx)) = (x, gx) {
-                r.extend((x - gx).iter());
+            // Untrusted terms stay in the vector as zeros, so its length never changes.
+            match gc {
+                Some(gc) => r.extend((uc - gc).iter().map(|v| v * CENTRE_DIRECTION_WEIGHT)),
+                None => r.extend([0.0; 3]),
+            }
+            match (x, gx) {
+                (Some(x), Some(gx)) => r.extend((x - gx).iter()),
+                (Some(_), None) => r.extend([0.0; 3]),
+                _ => {}
             }
         }
         r.extend(params.iter().map(|a| POSTURE_PRIOR * a));
@@ -368,6 +385,7 @@ mod tests {
                 subject: &subject,
                 subject_markers: sm,
                 template_markers: tm,
+                reliable: [true; 16],
             },
         )
         .unwrap();
@@ -404,6 +422,7 @@ mod tests {
                 subject: &t.skeleton,
                 subject_markers: sm,
                 template_markers: tm,
+                reliable: [true; 16],
             },
         )
         .unwrap();
