@@ -5,6 +5,7 @@ pub mod closest_point;
 pub mod horn;
 pub mod loop_subdivision;
 pub mod mesh;
+pub mod sparse_cholesky;
 pub mod topology;
 
 pub use horn::{absolute_orientation, Registration};

@@ -15,14 +15,12 @@
 use crate::anatomy::{Finger, Joint, Link};
 use crate::error::{Error, Result};
 use crate::geometry::closest_point::AabbTree;
+use crate::geometry::sparse_cholesky::{CholeskyError, SparseCholesky};
 use crate::geometry::{Point, TriMesh, Vec3};
 use crate::skeleton::Skeleton;
 use crate::template::{LinkWeights, TemplateHand};
-use faer::dyn_stack::{MemBuffer, MemStack};
-use faer::linalg::cholesky::llt::factor::LltRegularization;
-use faer::sparse::linalg::cholesky::{factorize_symbolic_cholesky, LltRef};
-use faer::sparse::{SparseColMat, Triplet};
-use faer::{Conj, Mat, Par};
+use faer::sparse::Triplet;
+use faer::Mat;
 
 /// Where the weights of an individual hand come from.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
@@ -222,34 +220,13 @@ pub fn bone_heat_weights(skin: &TriMesh, sk: &Skeleton, opts: &HeatOptions) -> R
     for i in 0..n {
         trip.push(Triplet::new(i, i, mass[i] * heat[i]));
     }
-    let fail = |e: &dyn std::fmt::Debug| {
+    let factor = SparseCholesky::new(n, &trip).map_err(|e| {
+        let (CholeskyError::Structure(e) | CholeskyError::NotPositiveDefinite(e)) = e;
         Error::invalid(format!(
-            "bone heat weights: the heat system could not be factorised ({e:?}); every part of \
+            "bone heat weights: the heat system could not be factorised ({e}); every part of \
              the skin must see a bone"
         ))
-    };
-    let k = SparseColMat::<usize, f64>::try_new_from_triplets(n, n, &trip).map_err(|e| fail(&e))?;
-    let symbolic = factorize_symbolic_cholesky(
-        k.symbolic(),
-        faer::Side::Lower,
-        Default::default(),
-        Default::default(),
-    )
-    .map_err(|e| fail(&e))?;
-    let mut values = vec![0.0; symbolic.len_val()];
-    let mut mem =
-        MemBuffer::new(symbolic.factorize_numeric_llt_scratch::<f64>(Par::Seq, Default::default()));
-    symbolic
-        .factorize_numeric_llt::<f64>(
-            &mut values,
-            k.as_ref(),
-            faer::Side::Lower,
-            LltRegularization::default(),
-            Par::Seq,
-            MemStack::new(&mut mem),
-            Default::default(),
-        )
-        .map_err(|e| fail(&e))?;
+    })?;
     let n_links = Link::ALL.len();
     let mut rhs = Mat::<f64>::zeros(n, n_links);
     for i in 0..n {
@@ -257,13 +234,7 @@ pub fn bone_heat_weights(skin: &TriMesh, sk: &Skeleton, opts: &HeatOptions) -> R
             rhs[(i, link[i])] = mass[i] * heat[i];
         }
     }
-    let mut mem = MemBuffer::new(symbolic.solve_in_place_scratch::<f64>(n_links, Par::Seq));
-    LltRef::new(&symbolic, &values).solve_in_place_with_conj(
-        Conj::No,
-        rhs.as_mut(),
-        Par::Seq,
-        MemStack::new(&mut mem),
-    );
+    factor.solve(&mut rhs);
     let mut out = Vec::with_capacity(n);
     for i in 0..n {
         let mut w: Vec<(usize, f64)> = (0..n_links)

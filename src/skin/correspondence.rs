@@ -46,12 +46,10 @@
 //! optimisation) is the caller's job: this function starts from the template as given.
 
 use crate::error::{Error, Result};
+use crate::geometry::sparse_cholesky::{CholeskyError, SparseCholesky};
 use crate::geometry::{Point, Topology, TriMesh, Vec3};
-use faer::dyn_stack::{MemBuffer, MemStack};
-use faer::linalg::cholesky::llt::factor::LltRegularization;
-use faer::sparse::linalg::cholesky::{factorize_symbolic_cholesky, LltRef, SymbolicCholesky};
-use faer::sparse::{SparseColMat, Triplet};
-use faer::{Conj, Mat, Par, Side};
+use faer::sparse::Triplet;
+use faer::Mat;
 use nalgebra::{DMatrix, DVector, Matrix3};
 
 /// Most caliper constraints accepted: the capacitance matrix is `m × m` and building it costs
@@ -244,7 +242,15 @@ pub fn fit_landmarks_with_points(
             rhs_const[u] += w * wu * pc.target.coords;
         }
     }
-    let factor = Factor::new(n, &trip)?;
+    let factor = SparseCholesky::new(n, &trip).map_err(|e| match e {
+        CholeskyError::Structure(e) => {
+            Error::invalid(format!("landmark fit: sparse Cholesky failed: {e}"))
+        }
+        CholeskyError::NotPositiveDefinite(_) => Error::invalid(
+            "landmark fit is under-determined (the system matrix is singular): pin \
+             every part of the mesh with landmarks, or make w_identity positive",
+        ),
+    })?;
 
     let m = distances.len();
     let pairs: Vec<[usize; 2]> = distances.iter().map(|d| [d.a, d.b]).collect();
@@ -684,7 +690,7 @@ fn add_pair(rhs: &mut Mat<f64>, [a, b]: [usize; 2], g: Vec3) {
 
 /// `P_cd = δ_cᵀ K⁻¹ δ_d` with `δ_c = e_{a_c} − e_{b_c}`, by solves in blocks of columns so the
 /// memory stays `O(m² + 32 n)`.
-fn pair_gram(factor: &Factor, n: usize, pairs: &[[usize; 2]]) -> DMatrix<f64> {
+fn pair_gram(factor: &SparseCholesky, n: usize, pairs: &[[usize; 2]]) -> DMatrix<f64> {
     const BLOCK: usize = 32;
     let m = pairs.len();
     let mut p = DMatrix::zeros(m, m);
@@ -728,67 +734,6 @@ fn vertex_normals(verts: &[Point], faces: &[[usize; 3]]) -> Vec<Vec3> {
         faces: faces.to_vec(),
     }
     .vertex_normals()
-}
-
-/// Sparse Cholesky factor `K = L Lᵀ` (faer, AMD ordering), computed and applied sequentially:
-/// on two cores the parallel kernels cost far more in synchronisation than they gain, and a
-/// local `Par::Seq` leaves faer's global setting to the application.
-struct Factor {
-    symbolic: SymbolicCholesky<usize>,
-    values: Vec<f64>,
-}
-
-impl Factor {
-    /// Factorise the symmetric matrix whose lower triangle is `trip` (duplicates summed).
-    fn new(n: usize, trip: &[Triplet<usize, usize, f64>]) -> Result<Self> {
-        let solver = |e: &dyn std::fmt::Debug| {
-            Error::invalid(format!("landmark fit: sparse Cholesky failed: {e:?}"))
-        };
-        let k = SparseColMat::<usize, f64>::try_new_from_triplets(n, n, trip)
-            .map_err(|e| solver(&e))?;
-        let symbolic = factorize_symbolic_cholesky(
-            k.symbolic(),
-            Side::Lower,
-            Default::default(),
-            Default::default(),
-        )
-        .map_err(|e| solver(&e))?;
-        let mut values = vec![0.0; symbolic.len_val()];
-        let mut mem = MemBuffer::new(
-            symbolic.factorize_numeric_llt_scratch::<f64>(Par::Seq, Default::default()),
-        );
-        symbolic
-            .factorize_numeric_llt::<f64>(
-                &mut values,
-                k.as_ref(),
-                Side::Lower,
-                LltRegularization::default(),
-                Par::Seq,
-                MemStack::new(&mut mem),
-                Default::default(),
-            )
-            .map_err(|_| {
-                Error::invalid(
-                    "landmark fit is under-determined (the system matrix is singular): pin \
-                     every part of the mesh with landmarks, or make w_identity positive",
-                )
-            })?;
-        Ok(Factor { symbolic, values })
-    }
-
-    /// Overwrite `rhs` with `K⁻¹ rhs`.
-    fn solve(&self, rhs: &mut Mat<f64>) {
-        let mut mem = MemBuffer::new(
-            self.symbolic
-                .solve_in_place_scratch::<f64>(rhs.ncols(), Par::Seq),
-        );
-        LltRef::new(&self.symbolic, &self.values).solve_in_place_with_conj(
-            Conj::No,
-            rhs.as_mut(),
-            Par::Seq,
-            MemStack::new(&mut mem),
-        );
-    }
 }
 
 #[cfg(test)]

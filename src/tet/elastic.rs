@@ -22,12 +22,10 @@
 
 use super::mesh::TetMesh;
 use crate::error::{Error, Result};
+use crate::geometry::sparse_cholesky::{CholeskyError, SparseCholesky};
 use crate::geometry::{Point, Vec3};
-use faer::dyn_stack::{MemBuffer, MemStack};
-use faer::linalg::cholesky::llt::factor::LltRegularization;
-use faer::sparse::linalg::cholesky::{factorize_symbolic_cholesky, LltRef, SymbolicCholesky};
-use faer::sparse::{SparseColMat, Triplet};
-use faer::{Conj, Mat, Par, Side};
+use faer::sparse::Triplet;
+use faer::Mat;
 use nalgebra::Matrix3;
 use rayon::prelude::*;
 use serde::Serialize;
@@ -73,7 +71,7 @@ pub struct ElasticSolver {
     free_index: Vec<usize>,
     fixed: Vec<usize>,
     n_free: usize,
-    factor: Factor,
+    factor: SparseCholesky,
 }
 
 impl ElasticSolver {
@@ -140,11 +138,15 @@ impl ElasticSolver {
                 }
             }
         }
-        let factor = if n_free > 0 {
-            Factor::new(n_free, &trip)?
-        } else {
-            Factor::empty()
-        };
+        let factor = SparseCholesky::new(n_free, &trip).map_err(|e| match e {
+            CholeskyError::Structure(e) => {
+                Error::invalid(format!("elastic solve: sparse Cholesky failed: {e}"))
+            }
+            CholeskyError::NotPositiveDefinite(_) => Error::invalid(
+                "elastic solve: the stiffness matrix is singular (a part of the tet mesh \
+                 touches no held node)",
+            ),
+        })?;
         Ok(ElasticSolver {
             tets: rest.tets.clone(),
             volume,
@@ -277,76 +279,6 @@ fn nearest_rotation(f: &Matrix3<f64>) -> Matrix3<f64> {
         u.column_mut(k).neg_mut();
     }
     u * v_t
-}
-
-/// Sparse Cholesky factor `K = L Lᵀ` (faer, AMD ordering), computed and applied sequentially
-/// (on two cores faer's parallel kernels cost more in synchronisation than they gain).
-struct Factor {
-    symbolic: Option<SymbolicCholesky<usize>>,
-    values: Vec<f64>,
-}
-
-impl Factor {
-    fn empty() -> Self {
-        Factor {
-            symbolic: None,
-            values: Vec::new(),
-        }
-    }
-
-    /// Factorise the symmetric matrix whose lower triangle is `trip` (duplicates summed).
-    fn new(n: usize, trip: &[Triplet<usize, usize, f64>]) -> Result<Self> {
-        let solver = |e: &dyn std::fmt::Debug| {
-            Error::invalid(format!("elastic solve: sparse Cholesky failed: {e:?}"))
-        };
-        let k = SparseColMat::<usize, f64>::try_new_from_triplets(n, n, trip)
-            .map_err(|e| solver(&e))?;
-        let symbolic = factorize_symbolic_cholesky(
-            k.symbolic(),
-            Side::Lower,
-            Default::default(),
-            Default::default(),
-        )
-        .map_err(|e| solver(&e))?;
-        let mut values = vec![0.0; symbolic.len_val()];
-        let mut mem = MemBuffer::new(
-            symbolic.factorize_numeric_llt_scratch::<f64>(Par::Seq, Default::default()),
-        );
-        symbolic
-            .factorize_numeric_llt::<f64>(
-                &mut values,
-                k.as_ref(),
-                Side::Lower,
-                LltRegularization::default(),
-                Par::Seq,
-                MemStack::new(&mut mem),
-                Default::default(),
-            )
-            .map_err(|_| {
-                Error::invalid(
-                    "elastic solve: the stiffness matrix is singular (a part of the tet mesh \
-                     touches no held node)",
-                )
-            })?;
-        Ok(Factor {
-            symbolic: Some(symbolic),
-            values,
-        })
-    }
-
-    /// Overwrite `rhs` with `K⁻¹ rhs`.
-    fn solve(&self, rhs: &mut Mat<f64>) {
-        let Some(symbolic) = &self.symbolic else {
-            return;
-        };
-        let mut mem = MemBuffer::new(symbolic.solve_in_place_scratch::<f64>(rhs.ncols(), Par::Seq));
-        LltRef::new(symbolic, &self.values).solve_in_place_with_conj(
-            Conj::No,
-            rhs.as_mut(),
-            Par::Seq,
-            MemStack::new(&mut mem),
-        );
-    }
 }
 
 #[cfg(test)]
