@@ -499,20 +499,11 @@ mod tests {
     use crate::synth::{simulate, Preset, SynthOptions};
     use crate::template::load_template;
 
-    /// On a simulated subject held in a posture other than the template's, the skin fitted
-    /// after posing the template onto the estimated link model is homologous to the template,
-    /// meets its dimensions and (apart from the caliper-shared ones) its landmarks, has no
-    /// inverted face, and lies close to the CT-like reference (an independent surface); the fit
-    /// without posing is measurably further off.
-    #[test]
-    fn posed_fit_is_homologous_and_near_the_reference() {
-        let s = simulate(&SynthOptions {
-            duration_s: Some(20.0),
-            voxel_mm: 1.0,
-            posture: crate::synth::Posture::Varied,
-            ..SynthOptions::new(104, Preset::Typical)
-        })
-        .unwrap();
+    /// A simulated subject, its hand's template and its estimated link model.
+    fn subject_template_model(
+        opts: SynthOptions,
+    ) -> (crate::synth::SyntheticSubject, TemplateHand, LinkModel) {
+        let s = simulate(&opts).unwrap();
         let t = load_template(s.subject.hand).unwrap();
         let model = crate::link::model::estimate_link_model_from(
             s.subject.hand,
@@ -520,6 +511,22 @@ mod tests {
             &s.trials,
         )
         .unwrap();
+        (s, t, model)
+    }
+
+    /// On a simulated subject held in a posture other than the template's, the skin fitted
+    /// after posing the template onto the estimated link model is homologous to the template,
+    /// meets its dimensions and (apart from the caliper-shared ones) its landmarks, has no
+    /// inverted face, and lies close to the CT-like reference (an independent surface); the fit
+    /// without posing is measurably further off.
+    #[test]
+    fn posed_fit_is_homologous_and_near_the_reference() {
+        let (s, t, model) = subject_template_model(SynthOptions {
+            duration_s: Some(20.0),
+            voxel_mm: 1.0,
+            posture: crate::synth::Posture::Varied,
+            ..SynthOptions::new(104, Preset::Typical)
+        });
         let run = |opts: &SkinOptions| {
             fit_skin(
                 &t,
@@ -587,19 +594,11 @@ mod tests {
     /// index).
     #[test]
     fn untrusted_link_model_does_not_break_the_skin() {
-        let s = simulate(&SynthOptions {
+        let (s, t, model) = subject_template_model(SynthOptions {
             duration_s: Some(3.0),
             voxel_mm: 2.0,
             ..SynthOptions::new(72, Preset::Typical)
-        })
-        .unwrap();
-        let t = load_template(s.subject.hand).unwrap();
-        let model = crate::link::model::estimate_link_model_from(
-            s.subject.hand,
-            s.subject.reference_frame,
-            &s.trials,
-        )
-        .unwrap();
+        });
         assert!(!model.warnings.is_empty());
         let fit = fit_skin(
             &t,
@@ -617,7 +616,10 @@ mod tests {
             .zip(&s.true_skin.vertices)
             .map(|(a, b)| (a - b).norm())
             .fold(0.0, f64::max);
-        assert!(worst < 6.0, "fitted skin {worst} mm off the true skin by index");
+        assert!(
+            worst < 6.0,
+            "fitted skin {worst} mm off the true skin by index"
+        );
     }
 
     #[test]
