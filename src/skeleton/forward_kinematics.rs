@@ -124,6 +124,30 @@ pub fn posed_skeleton(sk: &Skeleton, transforms: &[Isometry3<f64>]) -> Skeleton 
     out
 }
 
+/// Linear blend skinning of one point: `Σ_l w_l T_l p` over its `(link, weight)` pairs (the
+/// weights of a point are expected to sum to one).
+pub fn blend_point(p: &Point, weights: &[(usize, f64)], transforms: &[Isometry3<f64>]) -> Point {
+    let mut acc = Vec3::zeros();
+    for &(l, w) in weights {
+        acc += (transforms[l] * p).coords * w;
+    }
+    Point::from(acc)
+}
+
+/// Linear blend skinning of every point by its weights ([`blend_point`]). The fast, checked
+/// form for posing many times is `crate::pose::SkinBinding`.
+pub fn linear_blend(
+    points: &[Point],
+    weights: &[Vec<(usize, f64)>],
+    transforms: &[Isometry3<f64>],
+) -> Vec<Point> {
+    points
+        .iter()
+        .zip(weights)
+        .map(|(p, w)| blend_point(p, w, transforms))
+        .collect()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

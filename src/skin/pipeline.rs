@@ -22,10 +22,9 @@ use crate::error::{Error, Result};
 use crate::geometry::{absolute_orientation, Point, TriMesh, Vec3};
 use crate::link::LinkModel;
 use crate::mocap::trajectories::Trajectories;
-use crate::skeleton::forward_kinematics::posed_skeleton;
+use crate::skeleton::forward_kinematics::{linear_blend, posed_skeleton};
 use crate::skeleton::Skeleton;
 use crate::template::{dominant_links, TemplateHand};
-use nalgebra::{Isometry3, Matrix4, Vector4};
 use std::collections::BTreeMap;
 use std::str::FromStr;
 
@@ -218,7 +217,10 @@ pub fn fit_skin(
     };
     let (posed, posed_skeleton) = match &posture {
         Some(p) => (
-            linear_blend(&aligned, &template.weights, &p.transforms),
+            TriMesh {
+                vertices: linear_blend(&aligned.vertices, &template.weights, &p.transforms),
+                faces: aligned.faces.clone(),
+            },
             p.skeleton.clone(),
         ),
         None => (aligned.clone(), aligned_skeleton.clone()),
@@ -372,28 +374,6 @@ pub fn fit_skin(
         iterations: fit.iterations,
         warnings,
     })
-}
-
-/// Linear blend skinning of `mesh` by per-vertex link `weights` and link `transforms`.
-fn linear_blend(
-    mesh: &TriMesh,
-    weights: &crate::template::LinkWeights,
-    transforms: &[Isometry3<f64>],
-) -> TriMesh {
-    let m: Vec<Matrix4<f64>> = transforms.iter().map(|t| t.to_homogeneous()).collect();
-    TriMesh {
-        vertices: mesh
-            .vertices
-            .iter()
-            .zip(weights)
-            .map(|(p, w)| {
-                let h = Vector4::new(p.x, p.y, p.z, 1.0);
-                let acc: Vector4<f64> = w.iter().map(|&(l, wl)| m[l] * h * wl).sum();
-                Point::new(acc.x, acc.y, acc.z)
-            })
-            .collect(),
-        faces: mesh.faces.clone(),
-    }
 }
 
 /// Joints whose centre constrains the skin: the digits' joints, where skin surrounds the bone

@@ -32,7 +32,7 @@
 use crate::anatomy::Joint;
 use crate::error::{Error, Result};
 use crate::geometry::{Point, Vec3};
-use crate::skeleton::forward_kinematics::{link_transforms, posed_skeleton};
+use crate::skeleton::forward_kinematics::{blend_point, link_transforms, posed_skeleton};
 use crate::skeleton::{Pose, Skeleton};
 use nalgebra::{DMatrix, DVector, Isometry3};
 use std::collections::BTreeMap;
@@ -144,12 +144,7 @@ fn distal_centre(sk: &Skeleton, j: Joint, nail: Point) -> Point {
 type Features = Vec<(Joint, Vec3, Vec3, Option<Vec3>)>;
 
 fn skinned(m: &SkinnedMarker, tf: &[Isometry3<f64>]) -> Point {
-    Point::from(
-        m.weights
-            .iter()
-            .map(|&(l, w)| (tf[l] * m.position).coords * w)
-            .sum::<Vec3>(),
-    )
+    blend_point(&m.position, &m.weights, tf)
 }
 
 /// The features of the posed template.

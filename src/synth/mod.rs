@@ -23,7 +23,7 @@ use crate::mocap::subject::Subject;
 use crate::mocap::trajectories::Trajectories;
 use crate::rng::Rng;
 use crate::skeleton::forward_kinematics::link_transforms;
-use crate::skeleton::forward_kinematics::posed_skeleton;
+use crate::skeleton::forward_kinematics::{linear_blend, posed_skeleton};
 use crate::skeleton::record::{joint_records, JointRecord};
 use crate::skeleton::{Pose, Skeleton};
 use crate::template::{load_template, TemplateHand};
@@ -319,13 +319,7 @@ pub fn simulate(opts: &SynthOptions) -> Result<SyntheticSubject> {
     // 2. The reference posture, by the template's skin weights on the subject's skeleton.
     let posture = draw_posture(&mut root.fork("posture"), opts.posture);
     let tf = link_transforms(&shaped.skeleton, &posture);
-    for (p, w) in skin.vertices.iter_mut().zip(&template.weights) {
-        let mut acc = Vec3::zeros();
-        for &(l, wl) in w {
-            acc += (tf[l] * *p).coords * wl;
-        }
-        *p = Point::from(acc);
-    }
+    skin.vertices = linear_blend(&skin.vertices, &template.weights, &tf);
     let sk_ref = posed_skeleton(&shaped.skeleton, &tf);
 
     // 3. Into the lab frame.
