@@ -237,20 +237,46 @@ pub fn reconstruct_with(
 ) -> Result<crate::link::LinkModel> {
     let t0 = Instant::now();
     let subject = crate::mocap::subject::Subject::load(subject_dir)?;
+    let template = template::load_template(subject.hand)?;
+    // Section 3.7's template-only work (tet mesh from the cache, binding, factorisation) needs
+    // nothing of the subject: it runs on a second thread while the link model and the skin are
+    // fitted.
+    std::thread::scope(|scope| {
+        let prepared = scope.spawn(|| {
+            let t = Instant::now();
+            crate::tet::TemplateTet::prepare(&template, None).map(|p| (p, t.elapsed()))
+        });
+        reconstruct_stages(&subject, &template, prepared, out, opts, log, t0)
+    })
+}
+
+/// The stages of [`reconstruct_with`] after loading, with the template's tet preparation
+/// running on `prepared`.
+fn reconstruct_stages(
+    subject: &crate::mocap::subject::Subject,
+    template: &template::TemplateHand,
+    prepared: std::thread::ScopedJoinHandle<
+        '_,
+        Result<(crate::tet::TemplateTet, std::time::Duration)>,
+    >,
+    out: &Path,
+    opts: &SkinOptions,
+    log: &Log,
+    t0: Instant,
+) -> Result<crate::link::LinkModel> {
     log.info(format!(
         "reconstruct {}: link model from 7 trials",
         subject.name
     ));
-    let model = crate::link::estimate_link_model(&subject)?;
+    let model = crate::link::estimate_link_model(subject)?;
     let t_link = t0.elapsed().as_secs_f64();
     for w in &model.warnings {
         log.warn(w);
     }
     let t1 = Instant::now();
-    let template = template::load_template(subject.hand)?;
     let reference = subject.load_trial(crate::mocap::subject::TrialKind::Reference)?;
     let skin = crate::skin::pipeline::fit_skin(
-        &template,
+        template,
         &reference,
         &subject.dimensions,
         subject.marker_offset_mm,
@@ -258,7 +284,7 @@ pub fn reconstruct_with(
         opts,
     )?;
     // Section 3.6: 1-DOF centres onto the skin's cross-section.
-    let pairs = crate::skin::section_centre::edge_pairs(&template)?;
+    let pairs = crate::skin::section_centre::edge_pairs(template)?;
     let (centred, shifts) =
         crate::skin::section_centre::centre_on_cross_section(&model.skeleton, &skin.high, &pairs);
     let model = model.with_skin_centres(&centred, &shifts);
@@ -269,13 +295,15 @@ pub fn reconstruct_with(
     // Section 3.7: the template's tetrahedral mesh (cached) carried to the subject.
     let t2 = Instant::now();
     log.info("tet: template tetrahedral mesh (cached after the first run), elastic deformation");
-    let template_tet = crate::tet::template_tet_mesh(&template, None)?;
-    let (tet, tet_report) = crate::tet::subject_tet_mesh(&template, &template_tet, &skin.high)?;
+    let (template_tet, t_prepare) = prepared
+        .join()
+        .map_err(|_| Error::invalid("tet: the template preparation thread panicked"))??;
+    let (tet, tet_report) = template_tet.deform(&skin.high)?;
     let t_tet = t2.elapsed().as_secs_f64();
     // The skinned individual hand (issue 7).
     let t3 = Instant::now();
     let hand = crate::pose::IndividualHand::from_skin(
-        &template,
+        template,
         skin.high.clone(),
         model.skeleton.clone(),
         crate::pose::WeightMethod::default(),
@@ -306,6 +334,7 @@ pub fn reconstruct_with(
             ("link", t_link),
             ("skin", t_skin),
             ("tet", t_tet),
+            ("tet_template_prepare_parallel", t_prepare.as_secs_f64()),
             ("hand", t_hand),
         ]
         .into_iter()

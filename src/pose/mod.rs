@@ -38,12 +38,14 @@
 
 pub mod gltf;
 pub mod hand;
+pub mod harmonic_weights;
 pub mod pose_file;
 pub mod quality;
 pub mod skinning;
 pub mod weights;
 
 pub use hand::IndividualHand;
+pub use harmonic_weights::{pose_tet_nodes, tet_node_weights};
 pub use pose_file::{named_pose, parse_pose_toml, read_pose_file, resolve_pose, NAMED_POSES};
 pub use skinning::{dual_quaternion, linear_blend, SkinBinding, Skinning, SparseWeights};
 pub use weights::{bone_heat_weights, template_weights, HeatOptions, WeightMethod};
@@ -67,7 +69,8 @@ pub struct PoseSummary {
 /// built-in name of [`NAMED_POSES`] or a `POSE.toml` path), clamp it to the limits with a
 /// warning per joint, and write `out_file` by its extension: `.glb` the skinned hand with the
 /// pose on its joint nodes (a viewer shows it posed and can re-pose it), `.obj` the posed skin
-/// (dual-quaternion skinning), mm.
+/// (dual-quaternion skinning), mm; `.vtk` or `.msh` the posed tetrahedral mesh `OUT/tet.vtk`
+/// (its nodes dual-quaternion skinned with [`tet_node_weights`]), mm.
 pub fn pose_command(
     model_dir: &Path,
     pose_arg: &str,
@@ -78,10 +81,14 @@ pub fn pose_command(
         .extension()
         .and_then(|e| e.to_str())
         .map(str::to_ascii_lowercase);
-    if !matches!(ext.as_deref(), Some("glb") | Some("obj")) {
+    if !matches!(
+        ext.as_deref(),
+        Some("glb") | Some("obj") | Some("vtk") | Some("msh")
+    ) {
         return Err(Error::input(
             out_file,
-            "unknown output type: the file name must end in .glb or .obj",
+            "unknown output type: the file name must end in .glb or .obj (skin), .vtk or .msh \
+             (tetrahedral mesh)",
         ));
     }
     let (pose, clamps) = resolve_pose(pose_arg)?;
@@ -101,6 +108,14 @@ pub fn pose_command(
             );
             write_glb(out_file, &scene, Units::Metres)?;
         }
+        Some("vtk") | Some("msh") => {
+            let posed = posed_tet(&hand, model_dir, &pose)?;
+            if ext.as_deref() == Some("vtk") {
+                crate::io::vtk::write_vtk(out_file, &posed, Units::Millimetres)?;
+            } else {
+                crate::io::gmsh::write_msh(out_file, &posed, Units::Millimetres)?;
+            }
+        }
         _ => {
             let posed = hand.posed_skin(&pose, Skinning::DualQuaternion);
             write_obj(out_file, &posed, Units::Millimetres, None)?;
@@ -114,6 +129,50 @@ pub fn pose_command(
     Ok(PoseSummary {
         warnings,
         written: out_file.to_path_buf(),
+    })
+}
+
+/// The tetrahedral mesh of the `reconstruct` folder `model_dir` (`tet.vtk`, homologous to the
+/// template's) in `pose`: its nodes dual-quaternion skinned with [`tet_node_weights`] through
+/// `hand`'s skeleton. Errors naming `tet.vtk` when it is not homologous to the template's tet
+/// mesh (made by another version or other stuffing parameters: re-run reconstruct).
+pub fn posed_tet(
+    hand: &IndividualHand,
+    model_dir: &Path,
+    pose: &crate::skeleton::Pose,
+) -> Result<crate::tet::TetMesh> {
+    let path = model_dir.join("tet.vtk");
+    let tet = crate::io::vtk::read_vtk(&path, Units::Millimetres)?;
+    let template = crate::template::load_template(hand.side)?;
+    let prepared = crate::tet::TemplateTet::prepare(&template, None)?;
+    if tet.n_nodes() != prepared.tet.n_nodes() || tet.tets != prepared.tet.tets {
+        return Err(Error::input(
+            &path,
+            format!(
+                "{} nodes / {} tetrahedra, not homologous to the {} template's tet mesh ({} / {}); \
+                 re-run reconstruct",
+                tet.n_nodes(),
+                tet.n_tets(),
+                hand.side,
+                prepared.tet.n_nodes(),
+                prepared.tet.n_tets()
+            ),
+        ));
+    }
+    let weights = tet_node_weights(&template, &prepared)?;
+    let t = crate::skeleton::forward_kinematics::link_transforms(&hand.skeleton, pose);
+    let skin = hand.posed_skin(pose, Skinning::DualQuaternion);
+    let nodes = pose_tet_nodes(
+        &tet.nodes,
+        &weights,
+        &prepared.binding,
+        &skin,
+        &t,
+        Skinning::DualQuaternion,
+    )?;
+    Ok(crate::tet::TetMesh {
+        nodes,
+        tets: tet.tets,
     })
 }
 

@@ -204,7 +204,7 @@ impl SkinBinding {
     }
 
     /// Dual-quaternion skinning (Kavan et al. 2008, algorithm 1 with the antipodality check
-    /// against the point's first, dominant, link): the posed points.
+    /// against the point's dominant link): the posed points.
     pub fn dual_quaternion(&self, transforms: &[Isometry3<f64>]) -> Vec<Point> {
         self.check(transforms);
         let dqs: Vec<DualQuat> = transforms.iter().map(DualQuat::from_isometry).collect();
@@ -214,11 +214,18 @@ impl SkinBinding {
             .enumerate()
             .map(|(i, p)| {
                 let p = Vector3::new(p[0], p[1], p[2]);
-                let mut it = w.offsets[i] as usize..w.offsets[i + 1] as usize;
-                let Some(first) = it.next() else {
+                let range = w.offsets[i] as usize..w.offsets[i + 1] as usize;
+                // The antipodality pivot is the point's dominant link, whatever the order its
+                // weights come in: a pivot on a small weight across a joint bent past 180°
+                // (a fist's proximal link against the palm) would flip the blend.
+                let Some(dominant) = range
+                    .clone()
+                    .max_by(|&a, &b| w.weights[a].total_cmp(&w.weights[b]))
+                else {
                     return Point::from(p);
                 };
-                let pivot = dqs[w.links[first] as usize].real;
+                let first = range.start;
+                let pivot = dqs[w.links[dominant] as usize].real;
                 let mut real = Quaternion::new(0.0, 0.0, 0.0, 0.0);
                 let mut dual = Quaternion::new(0.0, 0.0, 0.0, 0.0);
                 for k in first..w.offsets[i + 1] as usize {

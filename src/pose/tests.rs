@@ -23,8 +23,12 @@ fn template_hand(side: Side) -> (TemplateHand, IndividualHand) {
 /// A simulated subject reconstructed as `reconstruct` does: link model from its trials, skin
 /// fitted to its reference trial.
 fn simulated_hand(seed: u64, method: WeightMethod) -> IndividualHand {
+    simulated_hand_for(seed, 3.0, method)
+}
+
+fn simulated_hand_for(seed: u64, duration_s: f64, method: WeightMethod) -> IndividualHand {
     let s = simulate(&SynthOptions {
-        duration_s: Some(3.0),
+        duration_s: Some(duration_s),
         voxel_mm: 2.0,
         ..SynthOptions::new(seed, Preset::Typical)
     })
@@ -198,6 +202,7 @@ fn fist_quality_figures() {
         let h = IndividualHand::from_skin(&t, t.mesh.clone(), t.skeleton.clone(), method).unwrap();
         hands.push(("template", method, h));
         hands.push(("subject", method, simulated_hand(72, method)));
+        hands.push(("subject-30s", method, simulated_hand_for(72, 30.0, method)));
     }
     for (who, method, h) in &hands {
         let tr = link_transforms(&h.skeleton, &pose);
@@ -385,4 +390,86 @@ fn pose_command_writes_glb_and_obj() {
         .unwrap_err()
         .to_string();
     assert!(e.contains("x.stl") && e.contains(".glb"), "{e}");
+}
+
+/// Issue 7's "the same deformation applied to the tetrahedral mesh's nodes": the template's
+/// tet mesh posed with [`tet_node_weights`] reproduces the rest mesh at zero angles, keeps its
+/// surface on the posed skin (each boundary node at the same barycentric point of the posed
+/// skin face it is bound to, before the exact placement within the skinning's blend error),
+/// leaves every node without weight on the index distal link in place when only the index
+/// DIP bends, and inverts almost no element (those at the palmar creases, where the skin
+/// itself folds in a fist).
+#[test]
+fn tet_nodes_follow_the_skin() {
+    use crate::pose::{pose_tet_nodes, tet_node_weights};
+    use crate::tet::{isosurface_stuffing, StuffingParams, TemplateTet, TetMesh};
+    let (t, h) = template_hand(Side::Right);
+    let tet = isosurface_stuffing(&t.mesh, &StuffingParams::default()).unwrap();
+    let prepared = TemplateTet::from_mesh(&t, tet).unwrap();
+    let w = tet_node_weights(&t, &prepared).unwrap();
+    assert_eq!(w.len(), prepared.tet.n_nodes());
+    for (i, wi) in w.iter().enumerate() {
+        let s: f64 = wi.iter().map(|x| x.1).sum();
+        assert!(
+            (s - 1.0).abs() < 1e-12 && wi.iter().all(|x| x.1 > 0.0),
+            "node {i}"
+        );
+    }
+    let zero = link_transforms(&h.skeleton, &Pose::zero());
+    let rest = dual_quaternion(&prepared.tet.nodes, &w, &zero).unwrap();
+    assert_eq!(rest, prepared.tet.nodes);
+    let b = &prepared.binding;
+    let l = Link::ALL.iter().position(|&l| l == Link::IDist).unwrap();
+    let mut dip = Pose::zero();
+    dip.angles[Joint::IDip.index()][0] = 60f64.to_radians();
+    let bent =
+        dual_quaternion(&prepared.tet.nodes, &w, &link_transforms(&h.skeleton, &dip)).unwrap();
+    let mut moved = 0;
+    for (i, wi) in w.iter().enumerate() {
+        if wi.iter().any(|x| x.0 == l) {
+            moved += usize::from(bent[i] != prepared.tet.nodes[i]);
+        } else {
+            assert_eq!(bent[i], prepared.tet.nodes[i], "node {i} moved");
+        }
+    }
+    assert!(moved > 200, "{moved} nodes follow the index DIP");
+    for name in ["fist", "power-grasp", "pinch"] {
+        let pose = named_pose(name).unwrap();
+        let tr = link_transforms(&h.skeleton, &pose);
+        let skin = h.posed_skin(&pose, Skinning::DualQuaternion);
+        let skinned = dual_quaternion(&prepared.tet.nodes, &w, &tr).unwrap();
+        let nodes = pose_tet_nodes(
+            &prepared.tet.nodes,
+            &w,
+            b,
+            &skin,
+            &tr,
+            Skinning::DualQuaternion,
+        )
+        .unwrap();
+        let mut blend_error: f64 = 0.0;
+        for (k, &v) in b.nodes.iter().enumerate() {
+            let f = t.mesh.faces[b.faces[k]];
+            let on_skin = (0..3).fold(Point::origin(), |acc, j| {
+                acc + skin.vertices[f[j]].coords * b.barycentric[k][j]
+            });
+            blend_error = blend_error.max((skinned[v] - on_skin).norm());
+            assert!((nodes[v] - on_skin).norm() < 1e-9, "{name}: node {v}");
+        }
+        let posed = TetMesh {
+            nodes: nodes.clone(),
+            tets: prepared.tet.tets.clone(),
+        };
+        let inverted = posed.inverted_count();
+        eprintln!(
+            "tet {name}: skinned boundary within {blend_error:.3} mm of the posed skin, \
+             {inverted} of {} tetrahedra inverted",
+            posed.n_tets()
+        );
+        assert!(blend_error < 0.5, "{name}: {blend_error} mm");
+        assert!(
+            inverted * 1000 < posed.n_tets(),
+            "{name}: {inverted} inverted"
+        );
+    }
 }

@@ -217,6 +217,60 @@ impl ElasticSolver {
         Ok((x, stats))
     }
 
+    /// The harmonic extension of scalar fields given on the held nodes: per column `k` of
+    /// `held` (one row per [`Self::fixed`] node, same order), the values `u` at every node that
+    /// solve `K u = 0` on the free nodes with `u = held` on the held ones (the discrete Laplace
+    /// equation of the linear FEM, with the same prefactorised `K`). Used to carry skinning
+    /// weights from the surface into the volume; like the positions, an affine field is
+    /// reproduced exactly. Returns one row per node. Errors when the row count differs.
+    pub fn harmonic_extension(&self, held: &Mat<f64>) -> Result<Mat<f64>> {
+        if held.nrows() != self.fixed.len() {
+            return Err(Error::invalid(format!(
+                "harmonic extension: {} held rows given for {} held nodes",
+                held.nrows(),
+                self.fixed.len()
+            )));
+        }
+        let k = held.ncols();
+        let n = self.free_index.len();
+        let mut row_of_fixed = vec![usize::MAX; n];
+        for (r, &v) in self.fixed.iter().enumerate() {
+            row_of_fixed[v] = r;
+        }
+        let mut rhs = Mat::<f64>::zeros(self.n_free, k);
+        for (t, tet) in self.tets.iter().enumerate() {
+            let (v, g) = (self.volume[t], &self.grad[t]);
+            for a in 0..4 {
+                let i = self.free_index[tet[a]];
+                if i == usize::MAX {
+                    continue;
+                }
+                for b in 0..4 {
+                    let r = row_of_fixed[tet[b]];
+                    if r == usize::MAX {
+                        continue;
+                    }
+                    let kab = v * g[a].dot(&g[b]);
+                    for c in 0..k {
+                        rhs[(i, c)] -= kab * held[(r, c)];
+                    }
+                }
+            }
+        }
+        self.factor.solve(&mut rhs);
+        let mut out = Mat::<f64>::zeros(n, k);
+        for node in 0..n {
+            let (src, row) = match (self.free_index[node], row_of_fixed[node]) {
+                (usize::MAX, r) => (held, r),
+                (i, _) => (&rhs, i),
+            };
+            for c in 0..k {
+                out[(node, c)] = src[(row, c)];
+            }
+        }
+        Ok(out)
+    }
+
     fn deformation_gradient(&self, x: &[Point], t: usize) -> Matrix3<f64> {
         let tet = self.tets[t];
         let g = &self.grad[t];
@@ -265,9 +319,65 @@ impl ElasticSolver {
     }
 }
 
-/// The rotation nearest to `f` in the Frobenius norm: `U Vᵀ` of its SVD, with the last
-/// singular vector flipped when that would be a reflection.
-fn nearest_rotation(f: &Matrix3<f64>) -> Matrix3<f64> {
+/// The rotation nearest to `f` in the Frobenius norm (the rotation of its polar
+/// decomposition).
+///
+/// For `det f > 0` (every element that is not inverted) it is the orthogonal polar factor, found
+/// by Higham's scaled Newton iteration (Higham 1986, "Computing the polar decomposition — with
+/// applications", SIAM J. Sci. Stat. Comput. 7(4), eq. 3.1 and the Frobenius-norm scaling of
+/// section 3.3): `X ← (γ X + γ⁻¹ X⁻ᵀ) / 2`, `γ = (|X⁻¹|_F / |X|_F)^½`. It converges
+/// quadratically, in about six steps from a cold start and in one when `f` is already a rotation
+/// (so rigid motions stay exact), and is about 15x cheaper than a 3x3 SVD, which was two thirds
+/// of the ARAP solve. (Warm-starting from the last iteration's rotation would not help: the
+/// iteration commutes with rotations, so its step count depends on the stretch alone.)
+/// Inverted or nearly flat elements, and any that do not converge, fall back to
+/// [`nearest_rotation_svd`].
+pub fn nearest_rotation(f: &Matrix3<f64>) -> Matrix3<f64> {
+    let scale = f.norm_squared();
+    let det = f.determinant();
+    // Relative to |f|³, so the test does not depend on the units.
+    if !(det > 1e-10 * scale * scale.sqrt()) {
+        return nearest_rotation_svd(f);
+    }
+    let mut x = *f;
+    let mut d = det;
+    for _ in 0..MAX_POLAR_STEPS {
+        // X⁻ᵀ = cof(X) / det X: no general inverse needed for a 3x3.
+        let cof = cofactor(&x);
+        // Higham's (1,2)-norm-free scaling with Frobenius norms, γ = (|X⁻¹| / |X|)^½: square
+        // roots only, and it reaches the same few steps as the determinant scaling.
+        let gamma = (cof.norm() / (d * x.norm())).sqrt();
+        let next = (x * gamma + cof / (d * gamma)) * 0.5;
+        let change = (next - x).norm_squared();
+        x = next;
+        // Quadratic convergence: a step of 1e-8 leaves an error of order 1e-16 behind it.
+        if change < 1e-16 {
+            return x;
+        }
+        d = x.determinant();
+        if !(d > 0.0) {
+            break;
+        }
+    }
+    nearest_rotation_svd(f)
+}
+
+/// Newton steps [`nearest_rotation`] allows before it falls back to the SVD: a well-shaped
+/// element converges in 4-8.
+const MAX_POLAR_STEPS: usize = 30;
+
+/// The cofactor matrix of `m` (`det m · m⁻ᵀ`).
+fn cofactor(m: &Matrix3<f64>) -> Matrix3<f64> {
+    let c0 = m.column(1).cross(&m.column(2));
+    let c1 = m.column(2).cross(&m.column(0));
+    let c2 = m.column(0).cross(&m.column(1));
+    Matrix3::from_columns(&[c0, c1, c2])
+}
+
+/// The rotation nearest to `f` by its SVD: `U Vᵀ`, with the last singular vector flipped when
+/// that would be a reflection (the inverted-element case of Irving et al. 2004, "Invertible
+/// finite elements for robust simulation of large deformation").
+pub fn nearest_rotation_svd(f: &Matrix3<f64>) -> Matrix3<f64> {
     let svd = f.svd(true, true);
     let (Some(mut u), Some(v_t)) = (svd.u, svd.v_t) else {
         return Matrix3::identity();
@@ -369,6 +479,58 @@ mod tests {
         for (&v, p) in b.iter().zip(&held) {
             assert_eq!(out.nodes[v], *p);
         }
+    }
+
+    /// The Newton polar factor agrees with the SVD's nearest rotation on random, stretched,
+    /// nearly flat and inverted matrices, and returns a rotation exactly when given one.
+    #[test]
+    fn newton_polar_matches_svd() {
+        let mut rng = Rng::new(11);
+        for k in 0..2000 {
+            let r = rng.rotation().to_rotation_matrix().into_inner();
+            let q = rng.rotation().to_rotation_matrix().into_inner();
+            let s = match k % 4 {
+                0 => Matrix3::from_diagonal(&Vec3::new(1.0, 1.0, 1.0)),
+                1 => Matrix3::from_diagonal(&Vec3::new(
+                    rng.range(0.2, 5.0),
+                    rng.range(0.2, 5.0),
+                    rng.range(0.2, 5.0),
+                )),
+                2 => Matrix3::from_diagonal(&Vec3::new(3.0, 1.0, 1e-7)),
+                _ => Matrix3::from_diagonal(&Vec3::new(2.0, 0.5, -0.3)),
+            };
+            let f = r * s * q.transpose() * rng.range(0.01, 100.0);
+            let a = nearest_rotation(&f);
+            let b = nearest_rotation_svd(&f);
+            assert!((a - b).norm() < 1e-9, "case {k}: {a} vs {b}");
+            assert!((a.transpose() * a - Matrix3::identity()).norm() < 1e-12);
+            assert!((a.determinant() - 1.0).abs() < 1e-12);
+        }
+        let r = Rng::new(3).rotation().to_rotation_matrix().into_inner();
+        assert!((nearest_rotation(&r) - r).norm() < 1e-15);
+    }
+
+    /// An affine scalar field on the boundary extends to the same affine field inside (the FEM
+    /// Laplacian's linear precision), column by column.
+    #[test]
+    fn harmonic_extension_reproduces_affine_fields() {
+        let (m, b) = ball();
+        let solver = ElasticSolver::new(&m, &b).unwrap();
+        let f = |p: &Point, c: usize| match c {
+            0 => 1.0,
+            1 => 0.3 * p.x - 0.2 * p.y + 0.05 * p.z + 2.0,
+            _ => -p.z,
+        };
+        let held = Mat::<f64>::from_fn(b.len(), 3, |r, c| f(&m.nodes[b[r]], c));
+        let u = solver.harmonic_extension(&held).unwrap();
+        for (v, p) in m.nodes.iter().enumerate() {
+            for c in 0..3 {
+                assert!((u[(v, c)] - f(p, c)).abs() < 1e-9, "node {v} column {c}");
+            }
+        }
+        assert!(solver
+            .harmonic_extension(&Mat::<f64>::zeros(b.len() + 1, 1))
+            .is_err());
     }
 
     #[test]

@@ -86,6 +86,46 @@ pub fn template_tet_mesh_with(
     Ok(mesh)
 }
 
+/// Everything of section 3.7 that depends on the template alone, made once: its tetrahedral
+/// mesh `R_temp`, the binding of its boundary nodes to the template surface and the factorised
+/// elastic solver. [`TemplateTet::deform`] then costs a subject only the boundary placement
+/// and the ARAP iterations; `reconstruct` prepares it on a second thread while the link model
+/// and the skin are fitted, and a batch can share one per hand.
+pub struct TemplateTet {
+    /// `R_temp`.
+    pub tet: TetMesh,
+    /// Its boundary nodes bound to the template's high-resolution surface.
+    pub binding: SurfaceBinding,
+    /// The prefactorised ARAP problem with the boundary held.
+    pub solver: ElasticSolver,
+}
+
+impl TemplateTet {
+    /// Load (or build and cache, see [`template_tet_mesh`]) the template's tet mesh, bind its
+    /// boundary and factorise the solver.
+    pub fn prepare(template: &TemplateHand, cache: Option<&Path>) -> Result<Self> {
+        let tet = template_tet_mesh(template, cache)?;
+        Self::from_mesh(template, tet)
+    }
+
+    /// [`TemplateTet::prepare`] from a tet mesh already at hand.
+    pub fn from_mesh(template: &TemplateHand, tet: TetMesh) -> Result<Self> {
+        let binding = bind_boundary(&tet, &template.mesh)?;
+        let solver = ElasticSolver::new(&tet, &binding.nodes)?;
+        Ok(TemplateTet {
+            tet,
+            binding,
+            solver,
+        })
+    }
+
+    /// The subject's tetrahedral mesh for a fitted skin homologous to the template (see
+    /// [`subject_tet_mesh`]).
+    pub fn deform(&self, fitted_skin: &TriMesh) -> Result<(TetMesh, TetReport)> {
+        deform(&self.tet, &self.binding, &self.solver, fitted_skin)
+    }
+}
+
 /// The subject's tetrahedral mesh `R_target` (section 3.7): `template_tet`'s boundary nodes,
 /// bound to `template.mesh`, are placed on `fitted_skin` (homologous to it), and the interior
 /// nodes follow by volumetric ARAP equilibrium ([`ElasticSolver`]). Same nodes and tetrahedra,
