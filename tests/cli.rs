@@ -1,6 +1,7 @@
 //! The command line as a user meets it: exit codes, one-line errors naming the file and item,
 //! outputs that exist only when complete.
 
+use ergohand::io::Units;
 use std::path::Path;
 use std::process::{Command, Output};
 
@@ -186,6 +187,33 @@ fn reconstruct_and_validate_a_simulated_subject() {
     ]);
     assert!(p.status.success(), "{}", stderr(&p));
     assert!(fist.is_file());
+    // ... and its tetrahedral mesh in the same pose (issue 7): same nodes and elements as
+    // tet.vtk, moved, with the same volume to a few percent.
+    let rest = ergohand::io::vtk::read_vtk(&out.join("tet.vtk"), Units::Millimetres).unwrap();
+    for ext in ["vtk", "msh"] {
+        let posed_path = dir.path().join(format!("power.{ext}"));
+        let p = ergohand(&[
+            "pose",
+            o,
+            "--pose",
+            "power-grasp",
+            "--out",
+            posed_path.to_str().unwrap(),
+            "-q",
+        ]);
+        assert!(p.status.success(), "{}", stderr(&p));
+        assert!(posed_path.is_file());
+    }
+    let posed =
+        ergohand::io::vtk::read_vtk(&dir.path().join("power.vtk"), Units::Millimetres).unwrap();
+    assert_eq!(posed.tets, rest.tets);
+    assert!(posed
+        .nodes
+        .iter()
+        .zip(&rest.nodes)
+        .any(|(a, b)| (a - b).norm() > 5.0));
+    assert!((posed.volume() / rest.volume() - 1.0).abs() < 0.03);
+    assert_eq!(posed.inverted_count(), 0);
     let p = ergohand(&[
         "pose",
         o,
