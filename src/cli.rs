@@ -403,8 +403,11 @@ fn reconstruct_stages(
 
 /// `ergohand pose OUT --pose POSE --out FILE.glb|obj`: the hand of a `reconstruct` folder in a
 /// pose file's or a built-in pose's joint angles (see [`crate::pose::pose_command`]).
-pub fn pose(model: &Path, pose: &str, out: &Path, log: &Log) -> Result<()> {
-    crate::pose::pose_command(model, pose, out, log).map(|_| ())
+pub fn pose(model: &Path, pose: &str, out: &Path, keep_angles: bool, log: &Log) -> Result<()> {
+    let opts = crate::pose::PoseOptions {
+        resolve_contacts: !keep_angles,
+    };
+    crate::pose::pose_command_with(model, pose, out, &opts, log).map(|_| ())
 }
 
 /// What `validate` measured.

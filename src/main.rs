@@ -100,6 +100,10 @@ enum Command {
         pose: PathBuf,
         #[arg(long)]
         out: PathBuf,
+        /// Use the angles exactly as given (after clamping to the limits), even where the
+        /// digits then enter each other; by default they give way by a few degrees.
+        #[arg(long)]
+        keep_angles: bool,
     },
     /// Grasp and contact checks on a CAD part.
     Grasp {
@@ -166,9 +170,12 @@ fn main() -> ExitCode {
             let report = report.unwrap_or_else(|| model.join("report"));
             cli::validate(&subject_dir, &model, &report, &log).map(|_| ())
         }
-        Command::Pose { model, pose, out } => {
-            cli::pose(&model, &pose.to_string_lossy(), &out, &log)
-        }
+        Command::Pose {
+            model,
+            pose,
+            out,
+            keep_angles,
+        } => cli::pose(&model, &pose.to_string_lossy(), &out, keep_angles, &log),
         Command::Grasp { scene, model, out } => {
             ergohand::grasp::grasp_command(&scene, model.as_deref(), &out, log.quiet()).map(|r| {
                 log.info(format!(

@@ -36,6 +36,7 @@
 //!
 //! [`skeleton::forward_kinematics::link_transforms`]: crate::skeleton::forward_kinematics::link_transforms
 
+pub mod contact_resolve;
 pub mod gltf;
 pub mod hand;
 pub mod harmonic_weights;
@@ -44,6 +45,7 @@ pub mod quality;
 pub mod skinning;
 pub mod weights;
 
+pub use contact_resolve::{resolve_finger_contacts, ResolveOptions, Resolved};
 pub use hand::IndividualHand;
 pub use harmonic_weights::{pose_tet_nodes, tet_node_weights};
 pub use pose_file::{named_pose, parse_pose_toml, read_pose_file, resolve_pose, NAMED_POSES};
@@ -58,10 +60,39 @@ use std::path::Path;
 /// What [`pose_command`] did.
 #[derive(Clone, Debug)]
 pub struct PoseSummary {
-    /// One line per clamped angle, naming the joint.
+    /// One line per clamped angle and per angle changed to keep the digits apart, naming the
+    /// joint.
     pub warnings: Vec<String>,
     /// The file written.
     pub written: std::path::PathBuf,
+    /// Deepest finger-finger penetration of the written pose, mm.
+    pub penetration_mm: f64,
+}
+
+/// Options of [`pose_command_with`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PoseOptions {
+    /// Change the angles as little as needed to keep the digits from entering each other
+    /// ([`resolve_finger_contacts`]); off: the angles exactly as given (after clamping).
+    pub resolve_contacts: bool,
+}
+
+impl Default for PoseOptions {
+    fn default() -> Self {
+        PoseOptions {
+            resolve_contacts: true,
+        }
+    }
+}
+
+/// [`pose_command_with`] the default options (contacts resolved).
+pub fn pose_command(
+    model_dir: &Path,
+    pose_arg: &str,
+    out_file: &Path,
+    log: &Log,
+) -> Result<PoseSummary> {
+    pose_command_with(model_dir, pose_arg, out_file, &PoseOptions::default(), log)
 }
 
 /// `ergohand pose OUT --pose POSE --out FILE`: load the hand of the `reconstruct` folder
@@ -71,10 +102,16 @@ pub struct PoseSummary {
 /// pose on its joint nodes (a viewer shows it posed and can re-pose it), `.obj` the posed skin
 /// (dual-quaternion skinning), mm; `.vtk` or `.msh` the posed tetrahedral mesh `OUT/tet.vtk`
 /// (its nodes dual-quaternion skinned with [`tet_node_weights`]), mm.
-pub fn pose_command(
+///
+/// Unless `opts.resolve_contacts` is off, the angles then give way where the digits of this
+/// hand would enter each other by more than 1 mm ([`resolve_finger_contacts`], with the
+/// skinning the output uses: LBS for `.glb`, which viewers skin linearly, DQS otherwise), with
+/// a warning per changed joint.
+pub fn pose_command_with(
     model_dir: &Path,
     pose_arg: &str,
     out_file: &Path,
+    opts: &PoseOptions,
     log: &Log,
 ) -> Result<PoseSummary> {
     let ext = out_file
@@ -92,11 +129,29 @@ pub fn pose_command(
         ));
     }
     let (pose, clamps) = resolve_pose(pose_arg)?;
-    let warnings: Vec<String> = clamps.iter().map(|c| format!("{pose_arg}: {c}")).collect();
+    let mut warnings: Vec<String> = clamps.iter().map(|c| format!("{pose_arg}: {c}")).collect();
+    let hand = IndividualHand::load(model_dir, WeightMethod::default())?;
+    let method = if ext.as_deref() == Some("glb") {
+        Skinning::Linear
+    } else {
+        Skinning::DualQuaternion
+    };
+    let (pose, penetration_mm) = if opts.resolve_contacts {
+        let r = resolve_finger_contacts(&hand, &pose, method, &ResolveOptions::default());
+        warnings.extend(r.describe().into_iter().map(|w| format!("{pose_arg}: {w}")));
+        (r.pose, r.depth_after_mm)
+    } else {
+        let t = crate::skeleton::forward_kinematics::link_transforms(&hand.skeleton, &pose);
+        let posed = crate::geometry::TriMesh {
+            vertices: hand.binding().apply(method, &t),
+            faces: hand.skin.faces.clone(),
+        };
+        let pen = quality::finger_penetration(&posed, &hand.weights, 12.0);
+        (pose, pen.depth_mm)
+    };
     for w in &warnings {
         log.warn(w);
     }
-    let hand = IndividualHand::load(model_dir, WeightMethod::default())?;
     match ext.as_deref() {
         Some("glb") => {
             let scene = gltf::skinned_scene(
@@ -122,13 +177,14 @@ pub fn pose_command(
         }
     }
     log.info(format!(
-        "pose {pose_arg}: {} -> {}",
+        "pose {pose_arg}: {} -> {} (deepest finger-finger penetration {penetration_mm:.1} mm)",
         model_dir.display(),
         out_file.display()
     ));
     Ok(PoseSummary {
         warnings,
         written: out_file.to_path_buf(),
+        penetration_mm,
     })
 }
 

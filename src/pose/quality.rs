@@ -50,6 +50,21 @@ pub struct Penetration {
     pub n_vertices: usize,
     /// Deepest penetration per (inside digit, entered digit) pair that has any, mm.
     pub by_pair: Vec<((Finger, Finger), f64)>,
+    /// Per entry of `by_pair`, where its deepest vertex is.
+    pub deepest: Vec<PenetrationPoint>,
+}
+
+/// The deepest vertex of one digit inside another.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PenetrationPoint {
+    /// The vertex inside.
+    pub vertex: usize,
+    /// Its closest point on the entered digit's surface.
+    pub surface_point: Point,
+    /// The entered digit's outward (pseudo-)normal there.
+    pub normal: nalgebra::Vector3<f64>,
+    /// The link (index over [`Link::ALL`]) of the entered digit's face there.
+    pub surface_link: usize,
 }
 
 /// Finger-finger self-penetration of `posed` (a skin with `weights`, vertex order and faces of
@@ -72,15 +87,16 @@ pub fn finger_penetration(
         pair: None,
         n_vertices: 0,
         by_pair: Vec::new(),
+        deepest: Vec::new(),
     };
     for b in Finger::ALL {
-        let faces: Vec<[usize; 3]> = posed
+        let (faces, sub_links): (Vec<[usize; 3]>, Vec<usize>) = posed
             .faces
             .iter()
             .zip(&fl)
             .filter(|(_, &l)| digit_of(l) == Some(b))
-            .map(|(f, _)| *f)
-            .collect();
+            .map(|(f, &l)| (*f, l))
+            .unzip();
         if faces.is_empty() {
             continue;
         }
@@ -122,9 +138,22 @@ pub fn finger_penetration(
             let n = normals.of(&sub, c.face, c.feature);
             if (p - c.point).dot(&n) < 0.0 {
                 best.n_vertices += 1;
-                match best.by_pair.iter_mut().find(|x| x.0 == (a, b)) {
-                    Some(x) => x.1 = x.1.max(c.distance),
-                    None => best.by_pair.push(((a, b), c.distance)),
+                let here = PenetrationPoint {
+                    vertex: v,
+                    surface_point: c.point,
+                    normal: n,
+                    surface_link: sub_links[c.face],
+                };
+                match best.by_pair.iter().position(|x| x.0 == (a, b)) {
+                    Some(k) if best.by_pair[k].1 < c.distance => {
+                        best.by_pair[k].1 = c.distance;
+                        best.deepest[k] = here;
+                    }
+                    Some(_) => {}
+                    None => {
+                        best.by_pair.push(((a, b), c.distance));
+                        best.deepest.push(here);
+                    }
                 }
                 if c.distance > best.depth_mm {
                     best.depth_mm = c.distance;

@@ -202,7 +202,6 @@ fn fist_quality_figures() {
         let h = IndividualHand::from_skin(&t, t.mesh.clone(), t.skeleton.clone(), method).unwrap();
         hands.push(("template", method, h));
         hands.push(("subject", method, simulated_hand(72, method)));
-        hands.push(("subject-30s", method, simulated_hand_for(72, 30.0, method)));
     }
     for (who, method, h) in &hands {
         let tr = link_transforms(&h.skeleton, &pose);
@@ -364,7 +363,11 @@ fn pose_command_writes_glb_and_obj() {
     .unwrap();
     let log = crate::cli::Log::new(true);
     let glb = dir.path().join("fist.glb");
-    let s = pose_command(dir.path(), "fist", &glb, &log).unwrap();
+    // The angles exactly as given: the viewer's LBS reproduces the library's.
+    let exact = PoseOptions {
+        resolve_contacts: false,
+    };
+    let s = pose_command_with(dir.path(), "fist", &glb, &exact, &log).unwrap();
     assert!(s.warnings.is_empty());
     let scene = crate::io::gltf::read_gltf(&glb, crate::io::Units::Metres).unwrap();
     let viewer = gltf::viewer_positions(&scene.meshes[0]).unwrap();
@@ -373,6 +376,10 @@ fn pose_command_writes_glb_and_obj() {
     for (a, b) in viewer.iter().zip(&lbs.vertices) {
         assert!((a - b).norm() < 5e-3);
     }
+    // By default the digits give way, each change named.
+    let s = pose_command(dir.path(), "fist", &dir.path().join("fist2.glb"), &log).unwrap();
+    assert!(s.penetration_mm <= 1.0, "{s:?}");
+    assert!(s.warnings.iter().all(|w| w.contains("apart")), "{s:?}");
     let pose_file = dir.path().join("p.toml");
     std::fs::write(&pose_file, "I_PIP = 150\nM_MCP = [30, 0, 0]\n").unwrap();
     let obj = dir.path().join("p.obj");
@@ -471,5 +478,82 @@ fn tet_nodes_follow_the_skin() {
             inverted * 1000 < posed.n_tets(),
             "{name}: {inverted} inverted"
         );
+    }
+}
+
+/// Issue 7's fist goal on individual hands. The built-in `fist` is a set of angles; on a
+/// broader or differently built hand the same angles close digits into each other, even on
+/// the *true* hand of a simulated subject (seed 2: the thumb enters the index by about 10 mm;
+/// seed 72: the ring the middle by about 7 mm), so this is not a reconstruction error.
+/// [`resolve_finger_contacts`] brings the true and the reconstructed hands of both subjects
+/// within the issue's 2 mm by changing angles by a few degrees, and leaves a pose without
+/// contacts alone.
+#[test]
+fn fist_contacts_resolved_on_individual_hands() {
+    let fist = named_pose("fist").unwrap();
+    let t = load_template(Side::Right).unwrap();
+    let opts = crate::pose::ResolveOptions::default();
+    for seed in [2u64, 72] {
+        let s = simulate(&SynthOptions {
+            duration_s: Some(30.0),
+            voxel_mm: 2.0,
+            ..SynthOptions::new(seed, Preset::Typical)
+        })
+        .unwrap();
+        let truth = IndividualHand::from_skin(
+            &t,
+            s.true_skin.clone(),
+            s.true_skeleton.clone(),
+            WeightMethod::Template,
+        )
+        .unwrap();
+        let model = crate::link::model::estimate_link_model_from(
+            s.subject.hand,
+            s.subject.reference_frame,
+            &s.trials,
+        )
+        .unwrap();
+        let fit = crate::skin::pipeline::fit_skin(
+            &t,
+            &s.trials["reference"],
+            &s.subject.dimensions,
+            s.subject.marker_offset_mm,
+            Some(&model),
+            &crate::skin::pipeline::SkinOptions::default(),
+        )
+        .unwrap();
+        let pairs = crate::skin::section_centre::edge_pairs(&t).unwrap();
+        let (centred, shifts) = crate::skin::section_centre::centre_on_cross_section(
+            &model.skeleton,
+            &fit.high,
+            &pairs,
+        );
+        let model = model.with_skin_centres(&centred, &shifts);
+        let recon = IndividualHand::from_skin(&t, fit.high, model.skeleton, WeightMethod::Template)
+            .unwrap();
+        for (who, h) in [("true", &truth), ("reconstructed", &recon)] {
+            for sk in [Skinning::DualQuaternion, Skinning::Linear] {
+                let r = crate::pose::resolve_finger_contacts(h, &fist, sk, &opts);
+                let largest = r
+                    .changes_deg
+                    .iter()
+                    .flat_map(|(_, d)| d.iter().map(|x| x.abs()))
+                    .fold(0.0, f64::max);
+                eprintln!(
+                    "seed {seed} {who} hand, {}: fist penetration {:.2} -> {:.2} mm in {} rounds, \
+                     largest change {largest:.1}°",
+                    sk.name(),
+                    r.depth_before_mm,
+                    r.depth_after_mm,
+                    r.iterations
+                );
+                assert!(r.depth_after_mm <= 2.0, "seed {seed} {who}: {r:?}");
+                assert!(largest <= 12.0, "seed {seed} {who}: {:?}", r.changes_deg);
+                let again = crate::pose::resolve_finger_contacts(h, &r.pose, sk, &opts);
+                if r.depth_after_mm <= opts.tolerance_mm {
+                    assert!(again.changes_deg.is_empty() && again.iterations == 0);
+                }
+            }
+        }
     }
 }
