@@ -17,12 +17,12 @@ use std::hint::black_box;
 
 const FRAMES: usize = 6000;
 
+/// Parent poses, child poses and the child markers' tracks in the parent's frame.
+type Trial = (Vec<Isometry3<f64>>, Vec<Isometry3<f64>>, Vec<Vec<Point>>);
+
 /// Parent and child poses of a joint at (10, 20, 30) mm: the parent drifts, the child moves
 /// about the joint by `motion(t)`; child markers 15-25 mm from the joint, 0.2 mm noise.
-fn trial(
-    motion: impl Fn(f64) -> UnitQuaternion<f64>,
-    seed: u64,
-) -> (Vec<Isometry3<f64>>, Vec<Isometry3<f64>>, Vec<Vec<Point>>) {
+fn trial(motion: impl Fn(f64) -> UnitQuaternion<f64>, seed: u64) -> Trial {
     let mut rng = Rng::new(seed);
     let centre = Vec3::new(10.0, 20.0, 30.0);
     let markers = [

@@ -315,11 +315,13 @@ pub fn run(
             subjects.len()
         ));
     }
-    log.info(format!(
-        "batch: reconstructing {} subjects with {jobs} threads into {}",
-        todo.len(),
-        out.display()
-    ));
+    if !todo.is_empty() {
+        log.info(format!(
+            "batch: reconstructing {} subjects with {jobs} threads into {}",
+            todo.len(),
+            out.display()
+        ));
+    }
 
     // Fill the template tet-mesh cache once per hand, before subjects race to build it.
     let mut sides: Vec<Side> = todo
