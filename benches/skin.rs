@@ -1,5 +1,6 @@
 //! The landmark fit of issue 5 (Sumner & Popović energy with the seed paper's constraints) on
-//! the base hand (2314 faces) and on the full template (37,024 faces), the template's 31
+//! the base hand (2314 faces), on the QEM mesh of ~1,000 faces the skin stage fits by default
+//! (low resolution) and on the full template (37,024 faces), the template's 31
 //! landmarks and 22 dimension pairs, toward a smooth non-affine deformation of the template.
 
 use criterion::{criterion_group, criterion_main, Criterion};
@@ -72,6 +73,26 @@ fn skin(c: &mut Criterion) {
     g.bench_function("base_hand_2314_faces", |b| {
         b.iter(|| fit_landmarks(black_box(&base), &lb, &db, &FitParams::default()).unwrap())
     });
+    // The paper's low resolution: the QEM mesh of ~1,000 faces keeping every landmark and
+    // dimension vertex, as the skin stage fits it by default.
+    let mut keep: Vec<usize> = idx
+        .iter()
+        .copied()
+        .chain(pairs.iter().flatten().copied())
+        .collect();
+    keep.sort_unstable();
+    keep.dedup();
+    let low = ergohand::skin::simplify::simplify_qem(&t.mesh, 1000, &keep).unwrap();
+    let at = |v: usize| low.index_of[v].expect("kept vertices survive");
+    let lidx: Vec<usize> = idx.iter().map(|&v| at(v)).collect();
+    let lpairs: Vec<[usize; 2]> = pairs.iter().map(|&[a, b]| [at(a), at(b)]).collect();
+    let (ll, dl) = problem(&low.mesh, &lidx, &lpairs);
+    g.bench_function(
+        format!("qem_low_resolution_{}_faces", low.mesh.n_faces()),
+        |b| {
+            b.iter(|| fit_landmarks(black_box(&low.mesh), &ll, &dl, &FitParams::default()).unwrap())
+        },
+    );
     let (lf, df) = problem(&t.mesh, &idx, &pairs);
     g.bench_function("full_template_37k_faces", |b| {
         b.iter(|| fit_landmarks(black_box(&t.mesh), &lf, &df, &FitParams::default()).unwrap())

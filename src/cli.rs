@@ -518,7 +518,7 @@ pub fn validate_suite(dir: &Path, report: &Path, log: &Log) -> Result<()> {
     use crate::anatomy::Joint;
     let suite = synth::suite::read_suite(&dir.join("suite.toml"))?;
     let pb = log.progress(suite.len() as u64, "suite");
-    let mut rows = Vec::new();
+    let (mut rows, mut figures) = (Vec::new(), Vec::new());
     for (name, opts) in &suite {
         pb.set_message(name.clone());
         let sdir = dir.join("subjects").join(name);
@@ -535,6 +535,8 @@ pub fn validate_suite(dir: &Path, report: &Path, log: &Log) -> Result<()> {
         let surf =
             crate::validate::surface_error(&out.join("skin.obj"), &sdir.join("reference.ply"))?;
         let dims = measure_dimensions(&sdir, &out, Some(&sdir.join("truth.json")))?;
+        let f = crate::validate::thresholds::Figures::measure(&acc, &surf, &dims, &out)?;
+        figures.push((name.clone(), f));
         rows.push((name.clone(), opts.clone(), acc, surf, dims, secs));
         pb.inc(1);
     }
@@ -599,7 +601,8 @@ pub fn validate_suite(dir: &Path, report: &Path, log: &Log) -> Result<()> {
     if !log.quiet() {
         print!("{md}");
     }
-    Ok(())
+    // Issue 9's regression check: an error naming each figure worse than its threshold.
+    crate::validate::thresholds::check_suite(&dir.join(crate::validate::thresholds::FILE), &figures)
 }
 
 /// The default subject of the demo: seed 1, typical errors, right hand.

@@ -14,6 +14,7 @@
 //! All lengths are millimetres in f64; units are converted at the edges (readers and writers).
 
 pub mod anatomy;
+pub mod batch;
 pub mod cli;
 pub mod error;
 pub mod geometry;

@@ -25,20 +25,6 @@ fn error_line(o: &Output) -> String {
 }
 
 #[test]
-fn stages_not_built_yet_say_so_and_exit_2() {
-    {
-        let args = &["batch", "SUBJECTS", "--out", "B"][..];
-        let o = ergohand(args);
-        assert_eq!(o.status.code(), Some(2), "{args:?}");
-        let line = error_line(&o);
-        assert!(
-            line.contains("not built yet") && line.contains(args[0]),
-            "{line}"
-        );
-    }
-}
-
-#[test]
 fn synth_writes_a_subject_and_refuses_bad_options() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("S");

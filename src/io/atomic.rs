@@ -34,13 +34,24 @@ pub fn write_bytes_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
 }
 
 /// The temporary sibling of `path`: same folder (so the rename stays on one file system),
-/// hidden, and unique per process so concurrent batch jobs do not collide.
+/// hidden, and unique per write: the process id, a per-process counter (threads of one
+/// `ergohand batch` writing the same file, e.g. the tet cache) and the clock's nanoseconds
+/// (processes with the same id on different cluster nodes sharing a cache folder).
 fn temp_path(path: &Path) -> PathBuf {
+    use std::sync::atomic::{AtomicU64, Ordering};
+    static WRITES: AtomicU64 = AtomicU64::new(0);
     let name = path
         .file_name()
         .map(|n| n.to_string_lossy().into_owned())
         .unwrap_or_else(|| "out".into());
-    path.with_file_name(format!(".{name}.{}.tmp", std::process::id()))
+    let nanos = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(0, |d| d.subsec_nanos());
+    path.with_file_name(format!(
+        ".{name}.{}.{}.{nanos}.tmp",
+        std::process::id(),
+        WRITES.fetch_add(1, Ordering::Relaxed)
+    ))
 }
 
 /// Read a whole file, naming it in the error.

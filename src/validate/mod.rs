@@ -5,6 +5,7 @@
 pub mod dimension_accuracy;
 pub mod link_accuracy;
 pub mod surface_error;
+pub mod thresholds;
 
 pub use dimension_accuracy::{dimension_accuracy, DimensionAccuracy};
 pub use link_accuracy::{link_accuracy, JointError, LinkAccuracy};

@@ -1,0 +1,541 @@
+//! `ergohand batch SUBJECTS_DIR --out DIR [--jobs N]`: every subject folder of `SUBJECTS_DIR`
+//! reconstructed as `ergohand reconstruct` would ([`crate::cli::reconstruct_with`]) into
+//! `DIR/<subject folder name>/`, several at once, with one progress bar, a summary table and
+//! skipping of subjects whose outputs are newer than all their inputs.
+//!
+//! Concurrency, and why it is safe:
+//! - **One pool of `jobs` threads.** `jobs` plain threads take subjects from a shared counter and
+//!   run each inside [`rayon::ThreadPool::install`] of a single rayon pool of `jobs` threads. The
+//!   stages' own `par_iter`s then run on that pool, so the batch never has more than `jobs`
+//!   threads computing (no pool per subject, no oversubscription), and at most `jobs` subjects are
+//!   in memory at a time: a thread that calls `install` from outside the pool blocks, whereas a
+//!   rayon worker waiting inside a nested `par_iter` would steal and start further subjects.
+//!   faer runs every sparse factorisation and solve with `Par::Seq`
+//!   ([`crate::geometry::sparse_cholesky`]), so it adds no threads of its own.
+//! - **The template's tetrahedral mesh cache** (`$ERGOHAND_CACHE`, [`crate::tet::cache`]) is
+//!   filled once per hand before the subjects start, so parallel subjects only read it instead of
+//!   each stuffing the template and writing the same cache file at once. Cache writes go through
+//!   [`crate::io::atomic`], whose temporary names are unique per process *and* per write, so
+//!   concurrent writers (threads, or processes on a cluster sharing the cache) never share one.
+//! - **Outputs** are per subject (`DIR/<name>/`); the summary is written once, at the end.
+
+use crate::anatomy::Side;
+use crate::cli::{self, Log};
+use crate::error::{Error, Result};
+use crate::io::atomic;
+use crate::mocap::subject::{Subject, SUBJECT_FILE};
+use crate::skin::pipeline::SkinOptions;
+use serde::Serialize;
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::Mutex;
+use std::time::{Instant, SystemTime};
+
+/// The files `ergohand reconstruct` writes into its output folder (spec section 3 and
+/// [`crate::cli::reconstruct_with`]); a subject is up to date when all of them exist and are
+/// newer than every input.
+pub const OUTPUTS: [&str; 7] = [
+    "link_model.json",
+    "skin_low.obj",
+    "skin.obj",
+    "tet.vtk",
+    "tet.msh",
+    "hand.glb",
+    "report.json",
+];
+
+/// The summary files written into the batch's output folder.
+pub const SUMMARY_MD: &str = "batch-summary.md";
+/// See [`SUMMARY_MD`].
+pub const SUMMARY_JSON: &str = "batch-summary.json";
+
+/// How a batch runs.
+#[derive(Clone, Debug, Default)]
+pub struct BatchOptions {
+    /// Threads (subjects at once, and the threads they share); `None`: the available cores.
+    pub jobs: Option<usize>,
+    /// The skin options every subject is reconstructed with.
+    pub skin: SkinOptions,
+}
+
+/// What became of one subject.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Status {
+    /// Reconstructed now.
+    Ok,
+    /// Reconstruction failed; the error is in [`SubjectOutcome::error`].
+    Failed,
+    /// Skipped: every output was newer than every input.
+    SkippedUpToDate,
+}
+
+impl Status {
+    /// The word used in the tables.
+    pub fn word(self) -> &'static str {
+        match self {
+            Status::Ok => "ok",
+            Status::Failed => "failed",
+            Status::SkippedUpToDate => "skipped-up-to-date",
+        }
+    }
+}
+
+/// Key figures of a subject's `report.json` (absent figures are `None`).
+#[derive(Clone, Debug, Default, PartialEq, Serialize)]
+pub struct KeyFigures {
+    /// Largest landmark residual of the skin fit, mm.
+    pub landmark_residual_max_mm: Option<f64>,
+    /// Largest |caliper residual| of the skin fit, mm.
+    pub dimension_residual_max_mm: Option<f64>,
+    /// Skin faces turned over by the fit.
+    pub inverted_faces: Option<u64>,
+    /// Inverted tetrahedra of the subject's mesh.
+    pub inverted_tets: Option<u64>,
+    /// Smallest dihedral angle of the subject's tetrahedral mesh, degrees.
+    pub min_dihedral_deg: Option<f64>,
+    /// Warnings of the link model and the skin fit.
+    pub warnings: Option<usize>,
+}
+
+impl KeyFigures {
+    /// The figures of `OUT/report.json`; `None` when it cannot be read as JSON.
+    pub fn read(report: &Path) -> Option<KeyFigures> {
+        let text = std::fs::read_to_string(report).ok()?;
+        let v: serde_json::Value = serde_json::from_str(&text).ok()?;
+        let max_abs = |m: &serde_json::Value| {
+            m.as_object().map(|o| {
+                o.values()
+                    .filter_map(serde_json::Value::as_f64)
+                    .fold(0.0_f64, |a, x| a.max(x.abs()))
+            })
+        };
+        Some(KeyFigures {
+            landmark_residual_max_mm: max_abs(&v["skin"]["landmark_residuals_mm"]),
+            dimension_residual_max_mm: max_abs(&v["skin"]["dimension_residuals_mm"]),
+            inverted_faces: v["skin"]["inverted_faces"].as_u64(),
+            inverted_tets: v["tet"]["inverted"].as_u64(),
+            min_dihedral_deg: v["tet"]["subject_quality"]["min_dihedral_deg"]["min"].as_f64(),
+            warnings: v["warnings"].as_array().map(Vec::len),
+        })
+    }
+}
+
+/// One row of the summary.
+#[derive(Clone, Debug, Serialize)]
+pub struct SubjectOutcome {
+    /// The subject folder's name (also its output folder's).
+    pub subject: String,
+    /// What happened.
+    pub status: Status,
+    /// Wall time of its reconstruction in this run, s (0 when skipped).
+    pub seconds: f64,
+    /// The one-line error of a failed subject.
+    pub error: Option<String>,
+    /// Figures of its `report.json` (this run's, or the earlier one of a skipped subject).
+    pub figures: Option<KeyFigures>,
+}
+
+/// The whole batch.
+#[derive(Clone, Debug, Serialize)]
+pub struct BatchSummary {
+    /// `SUBJECTS_DIR`.
+    pub subjects_dir: PathBuf,
+    /// `DIR`.
+    pub out: PathBuf,
+    /// Threads used.
+    pub jobs: usize,
+    /// Wall time of the batch, s.
+    pub seconds: f64,
+    /// One row per subject folder, by name.
+    pub subjects: Vec<SubjectOutcome>,
+}
+
+impl BatchSummary {
+    /// Subjects with `status`.
+    pub fn count(&self, status: Status) -> usize {
+        self.subjects.iter().filter(|s| s.status == status).count()
+    }
+
+    /// The failed subjects' names.
+    pub fn failed(&self) -> Vec<&str> {
+        self.subjects
+            .iter()
+            .filter(|s| s.status == Status::Failed)
+            .map(|s| s.subject.as_str())
+            .collect()
+    }
+
+    /// The summary as a markdown table (also what is printed on stderr).
+    pub fn to_markdown(&self) -> String {
+        let f = |x: Option<f64>, p: usize| x.map_or("-".into(), |x| format!("{x:.p$}"));
+        let n = |x: Option<u64>| x.map_or("-".into(), |x| x.to_string());
+        let mut md = format!(
+            "# Batch summary\n\n`ergohand batch {}` -> `{}`: {} subjects, {} ok, {} failed, {} skipped (up to date); {} jobs, {:.1} s.\n\n",
+            self.subjects_dir.display(),
+            self.out.display(),
+            self.subjects.len(),
+            self.count(Status::Ok),
+            self.count(Status::Failed),
+            self.count(Status::SkippedUpToDate),
+            self.jobs,
+            self.seconds
+        );
+        md.push_str("| subject | status | time (s) | landmark residual max (mm) | dimension residual max (mm) | inverted skin faces | inverted tets | min dihedral (deg) | warnings | error |\n|---|---|---|---|---|---|---|---|---|---|\n");
+        for s in &self.subjects {
+            let k = s.figures.clone().unwrap_or_default();
+            let time = if s.status == Status::SkippedUpToDate {
+                "-".into()
+            } else {
+                format!("{:.1}", s.seconds)
+            };
+            md.push_str(&format!(
+                "| {} | {} | {} | {} | {} | {} | {} | {} | {} | {} |\n",
+                s.subject,
+                s.status.word(),
+                time,
+                f(k.landmark_residual_max_mm, 3),
+                f(k.dimension_residual_max_mm, 3),
+                n(k.inverted_faces),
+                n(k.inverted_tets),
+                f(k.min_dihedral_deg, 1),
+                k.warnings.map_or("-".into(), |w| w.to_string()),
+                s.error.as_deref().unwrap_or("").replace('|', "\\|"),
+            ));
+        }
+        md
+    }
+}
+
+/// The subject folders of `dir`: its sub-folders holding `subject.toml`, sorted by name, as
+/// `(name, path)`. Errors when `dir` cannot be read or holds no subject folder.
+pub fn discover(dir: &Path) -> Result<Vec<(String, PathBuf)>> {
+    let entries = std::fs::read_dir(dir).map_err(|e| Error::io(dir, e))?;
+    let mut out = Vec::new();
+    for e in entries {
+        let e = e.map_err(|e| Error::io(dir, e))?;
+        let path = e.path();
+        if path.is_dir() && path.join(SUBJECT_FILE).is_file() {
+            out.push((e.file_name().to_string_lossy().into_owned(), path));
+        }
+    }
+    if out.is_empty() {
+        let hint = if dir.join(SUBJECT_FILE).is_file() {
+            " (this is a subject folder itself: use `ergohand reconstruct` or give its parent)"
+        } else {
+            ""
+        };
+        return Err(Error::input(
+            dir,
+            format!("no subject folders (sub-folders holding {SUBJECT_FILE}){hint}"),
+        ));
+    }
+    out.sort();
+    Ok(out)
+}
+
+/// The inputs of a subject: its `subject.toml` and every trial file it names.
+pub fn inputs(subject_dir: &Path) -> Result<Vec<PathBuf>> {
+    let s = Subject::load(subject_dir)?;
+    let mut v = vec![s.toml_path()];
+    v.extend(s.trials.values().map(|p| s.dir.join(p)));
+    Ok(v)
+}
+
+/// Are all of `out`'s [`OUTPUTS`] newer than every input of `subject_dir`? `false` whenever
+/// anything cannot be read (a missing output, an unreadable `subject.toml`, a missing trial),
+/// so such a subject is run and reports its own error.
+pub fn up_to_date(subject_dir: &Path, out: &Path) -> bool {
+    let mtime = |p: &Path| -> Option<SystemTime> { std::fs::metadata(p).ok()?.modified().ok() };
+    let newest_input = match inputs(subject_dir) {
+        Ok(v) => v.iter().map(|p| mtime(p)).collect::<Option<Vec<_>>>(),
+        Err(_) => None,
+    }
+    .and_then(|v| v.into_iter().max());
+    let oldest_output = OUTPUTS
+        .iter()
+        .map(|f| mtime(&out.join(f)))
+        .collect::<Option<Vec<_>>>()
+        .and_then(|v| v.into_iter().min());
+    match (newest_input, oldest_output) {
+        (Some(i), Some(o)) => o > i,
+        _ => false,
+    }
+}
+
+/// Run the batch and write `DIR/batch-summary.md` and `.json`. Failing subjects are in the
+/// summary (status `failed`, their one-line error); the `Err` case is only for the batch itself
+/// (no subjects, bad `--jobs`, an unwritable `DIR`). See [`batch_command`] for the exit status.
+pub fn run(
+    subjects_dir: &Path,
+    out: &Path,
+    opts: &BatchOptions,
+    log: &Log,
+) -> Result<BatchSummary> {
+    let t0 = Instant::now();
+    let jobs = match opts.jobs {
+        Some(0) => return Err(Error::invalid("--jobs 0: give at least 1 thread")),
+        Some(n) => n,
+        None => std::thread::available_parallelism().map_or(1, |n| n.get()),
+    };
+    let subjects = discover(subjects_dir)?;
+    std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(jobs)
+        .thread_name(|i| format!("ergohand-batch-{i}"))
+        .build()
+        .map_err(|e| Error::invalid(format!("--jobs {jobs}: cannot start the threads: {e}")))?;
+
+    let mut rows: Vec<Option<SubjectOutcome>> = vec![None; subjects.len()];
+    let mut todo = Vec::new();
+    for (i, (name, dir)) in subjects.iter().enumerate() {
+        let sout = out.join(name);
+        if up_to_date(dir, &sout) {
+            rows[i] = Some(SubjectOutcome {
+                subject: name.clone(),
+                status: Status::SkippedUpToDate,
+                seconds: 0.0,
+                error: None,
+                figures: KeyFigures::read(&sout.join("report.json")),
+            });
+        } else {
+            todo.push(i);
+        }
+    }
+    let skipped = subjects.len() - todo.len();
+    if skipped > 0 {
+        let names: Vec<&str> = rows.iter().flatten().map(|r| r.subject.as_str()).collect();
+        let list = if names.len() <= 10 {
+            format!(": {}", names.join(", "))
+        } else {
+            String::new()
+        };
+        log.info(format!(
+            "batch: {skipped} of {} subjects up to date (every output newer than subject.toml and its trials), skipped{list}",
+            subjects.len()
+        ));
+    }
+    if !todo.is_empty() {
+        log.info(format!(
+            "batch: reconstructing {} subjects with {jobs} threads into {}",
+            todo.len(),
+            out.display()
+        ));
+    }
+
+    // Fill the template tet-mesh cache once per hand, before subjects race to build it.
+    let mut sides: Vec<Side> = todo
+        .iter()
+        .filter_map(|&i| Subject::load(&subjects[i].1).ok().map(|s| s.hand))
+        .collect();
+    sides.sort_by_key(|s| *s == Side::Left);
+    sides.dedup();
+    pool.install(|| {
+        for side in sides {
+            if let Ok(t) = crate::template::load_template(side) {
+                let _ = crate::tet::template_tet_mesh(&t, None);
+            }
+        }
+    });
+
+    let pb = log.progress(todo.len() as u64, "batch");
+    let next = AtomicUsize::new(0);
+    let done = Mutex::new(Vec::new());
+    std::thread::scope(|scope| {
+        for _ in 0..jobs.min(todo.len()) {
+            scope.spawn(|| loop {
+                let k = next.fetch_add(1, Ordering::Relaxed);
+                let Some(&i) = todo.get(k) else { break };
+                let (name, dir) = &subjects[i];
+                let sout = out.join(name);
+                let t = Instant::now();
+                let result = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+                    pool.install(|| cli::reconstruct_with(dir, &sout, &opts.skin, &Log::new(true)))
+                }));
+                let seconds = t.elapsed().as_secs_f64();
+                let error = match result {
+                    Ok(Ok(_)) => None,
+                    Ok(Err(e)) => Some(e.to_string()),
+                    Err(p) => Some(format!(
+                        "{}: internal error (panic: {}); please report it",
+                        dir.display(),
+                        p.downcast_ref::<&str>()
+                            .map(|s| s.to_string())
+                            .or_else(|| p.downcast_ref::<String>().cloned())
+                            .unwrap_or_default()
+                    )),
+                };
+                if let Some(e) = &error {
+                    // Errors are shown even with --quiet, above the bar.
+                    pb.suspend(|| eprintln!("error: subject {name} failed: {e}"));
+                }
+                let row = SubjectOutcome {
+                    subject: name.clone(),
+                    status: if error.is_some() {
+                        Status::Failed
+                    } else {
+                        Status::Ok
+                    },
+                    seconds,
+                    figures: if error.is_none() {
+                        KeyFigures::read(&sout.join("report.json"))
+                    } else {
+                        None
+                    },
+                    error,
+                };
+                pb.set_message(name.clone());
+                pb.inc(1);
+                done.lock()
+                    .unwrap_or_else(|p| p.into_inner())
+                    .push((i, row));
+            });
+        }
+    });
+    pb.finish_and_clear();
+    for (i, row) in done.into_inner().unwrap_or_else(|p| p.into_inner()) {
+        rows[i] = Some(row);
+    }
+    let summary = BatchSummary {
+        subjects_dir: subjects_dir.to_path_buf(),
+        out: out.to_path_buf(),
+        jobs,
+        seconds: t0.elapsed().as_secs_f64(),
+        subjects: rows.into_iter().flatten().collect(),
+    };
+    let md = summary.to_markdown();
+    atomic::write_bytes_atomic(&out.join(SUMMARY_MD), md.as_bytes())?;
+    let json = serde_json::to_string_pretty(&summary).expect("serialisable");
+    atomic::write_bytes_atomic(&out.join(SUMMARY_JSON), json.as_bytes())?;
+    log.info(md.trim_end());
+    Ok(summary)
+}
+
+/// `ergohand batch`: [`run`], then an error naming the failed subjects (so the command exits
+/// non-zero) when any failed.
+pub fn batch_command(
+    subjects_dir: &Path,
+    out: &Path,
+    opts: &BatchOptions,
+    log: &Log,
+) -> Result<BatchSummary> {
+    let summary = run(subjects_dir, out, opts, log)?;
+    let failed = summary.failed();
+    if failed.is_empty() {
+        return Ok(summary);
+    }
+    let mut names = failed
+        .iter()
+        .take(10)
+        .copied()
+        .collect::<Vec<_>>()
+        .join(", ");
+    if failed.len() > 10 {
+        names.push_str(&format!(" and {} more", failed.len() - 10));
+    }
+    Err(Error::invalid(format!(
+        "batch: {} of {} subjects failed ({names}); the others are done, see {}",
+        failed.len(),
+        summary.subjects.len(),
+        out.join(SUMMARY_MD).display()
+    )))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A subject folder with a subject.toml naming one trial, and a complete output folder.
+    fn fake(dir: &Path) -> (PathBuf, PathBuf) {
+        let s = dir.join("S1");
+        std::fs::create_dir_all(s.join("trials")).unwrap();
+        std::fs::write(
+            s.join(SUBJECT_FILE),
+            "name = \"S1\"\nhand = \"right\"\nmarker_offset_mm = 4.0\n[trials]\nreference = \"trials/reference.c3d\"\n",
+        )
+        .unwrap();
+        std::fs::write(s.join("trials/reference.c3d"), b"x").unwrap();
+        let o = dir.join("out/S1");
+        std::fs::create_dir_all(&o).unwrap();
+        (s, o)
+    }
+
+    fn set_mtime(p: &Path, t: SystemTime) {
+        std::fs::File::options()
+            .write(true)
+            .open(p)
+            .unwrap()
+            .set_modified(t)
+            .unwrap();
+    }
+
+    #[test]
+    fn up_to_date_needs_every_output_newer_than_every_input() {
+        let d = tempfile::tempdir().unwrap();
+        let (s, o) = fake(d.path());
+        let t0 = SystemTime::now() - std::time::Duration::from_secs(100);
+        let later = t0 + std::time::Duration::from_secs(50);
+        set_mtime(&s.join(SUBJECT_FILE), t0);
+        set_mtime(&s.join("trials/reference.c3d"), t0);
+        // No outputs yet.
+        assert!(!up_to_date(&s, &o));
+        for f in OUTPUTS {
+            std::fs::write(o.join(f), b"o").unwrap();
+            set_mtime(&o.join(f), later);
+        }
+        assert!(up_to_date(&s, &o));
+        // A trial newer than one output: redo.
+        set_mtime(&s.join("trials/reference.c3d"), later);
+        assert!(!up_to_date(&s, &o));
+        set_mtime(&s.join("trials/reference.c3d"), t0);
+        // One output older than the subject.toml: redo.
+        set_mtime(&o.join("tet.msh"), t0 - std::time::Duration::from_secs(1));
+        assert!(!up_to_date(&s, &o));
+        set_mtime(&o.join("tet.msh"), later);
+        // A missing output or a missing trial: redo.
+        std::fs::remove_file(o.join("hand.glb")).unwrap();
+        assert!(!up_to_date(&s, &o));
+        std::fs::write(o.join("hand.glb"), b"o").unwrap();
+        set_mtime(&o.join("hand.glb"), later);
+        assert!(up_to_date(&s, &o));
+        std::fs::remove_file(s.join("trials/reference.c3d")).unwrap();
+        assert!(!up_to_date(&s, &o));
+    }
+
+    #[test]
+    fn discover_lists_subject_folders_only() {
+        let d = tempfile::tempdir().unwrap();
+        fake(d.path());
+        std::fs::create_dir_all(d.path().join("notes")).unwrap();
+        std::fs::write(d.path().join("readme.txt"), b"x").unwrap();
+        let found = discover(d.path()).unwrap();
+        assert_eq!(found.len(), 1);
+        assert_eq!(found[0].0, "S1");
+        let e = discover(&d.path().join("notes")).unwrap_err().to_string();
+        assert!(e.contains("notes") && e.contains(SUBJECT_FILE), "{e}");
+        let e = discover(&d.path().join("S1")).unwrap_err().to_string();
+        assert!(e.contains("reconstruct"), "{e}");
+    }
+
+    #[test]
+    fn key_figures_come_from_report_json() {
+        let d = tempfile::tempdir().unwrap();
+        let p = d.path().join("report.json");
+        std::fs::write(
+            &p,
+            r#"{"warnings": ["a", "b"], "skin": {"landmark_residuals_mm": {"X": 0.02, "Y": 0.4},
+               "dimension_residuals_mm": {"A": -0.3, "B": 0.1}, "inverted_faces": 0},
+               "tet": {"inverted": 1, "subject_quality": {"min_dihedral_deg": {"min": 5.5}}}}"#,
+        )
+        .unwrap();
+        let k = KeyFigures::read(&p).unwrap();
+        assert_eq!(k.landmark_residual_max_mm, Some(0.4));
+        assert_eq!(k.dimension_residual_max_mm, Some(0.3));
+        assert_eq!(k.inverted_faces, Some(0));
+        assert_eq!(k.inverted_tets, Some(1));
+        assert_eq!(k.min_dihedral_deg, Some(5.5));
+        assert_eq!(k.warnings, Some(2));
+        std::fs::write(&p, b"{").unwrap();
+        assert!(KeyFigures::read(&p).is_none());
+    }
+}
