@@ -323,20 +323,28 @@ pub fn run(
         ));
     }
 
-    // Fill the template tet-mesh cache once per hand, before subjects race to build it.
+    // The template's tet stage (cached mesh, binding, factorisation) once per hand, shared by
+    // every subject of that hand, before subjects race to build the cache. A hand whose
+    // preparation fails leaves its subjects to prepare (and report) it themselves.
     let mut sides: Vec<Side> = todo
         .iter()
         .filter_map(|&i| Subject::load(&subjects[i].1).ok().map(|s| s.hand))
         .collect();
     sides.sort_by_key(|s| *s == Side::Left);
     sides.dedup();
-    pool.install(|| {
-        for side in sides {
-            if let Ok(t) = crate::template::load_template(side) {
-                let _ = crate::tet::template_tet_mesh(&t, None);
-            }
-        }
+    let prepared: Vec<crate::tet::TemplateTet> = pool.install(|| {
+        sides
+            .iter()
+            .filter_map(|&side| {
+                let t = crate::template::load_template(side).ok()?;
+                crate::tet::TemplateTet::prepare(&t, None).ok()
+            })
+            .collect()
     });
+    let prepared_for = |dir: &Path| {
+        let hand = Subject::load(dir).ok()?.hand;
+        prepared.iter().find(|p| p.side == hand)
+    };
 
     let pb = log.progress(todo.len() as u64, "batch");
     let next = AtomicUsize::new(0);
@@ -350,7 +358,10 @@ pub fn run(
                 let sout = out.join(name);
                 let t = Instant::now();
                 let result = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
-                    pool.install(|| cli::reconstruct_with(dir, &sout, &opts.skin, &Log::new(true)))
+                    pool.install(|| {
+                        let shared = prepared_for(dir);
+                        cli::reconstruct_prepared(dir, &sout, &opts.skin, shared, &Log::new(true))
+                    })
                 }));
                 let seconds = t.elapsed().as_secs_f64();
                 let error = match result {

@@ -235,30 +235,75 @@ pub fn reconstruct_with(
     opts: &SkinOptions,
     log: &Log,
 ) -> Result<crate::link::LinkModel> {
+    reconstruct_prepared(subject_dir, out, opts, None, log)
+}
+
+/// [`reconstruct_with`] with the template's section 3.7 work done beforehand: a batch prepares
+/// one [`crate::tet::TemplateTet`] per hand and shares it. With `None` it is prepared here, on a
+/// second thread while the link model and the skin are fitted. A prepared template of the other
+/// hand is an error naming the subject.
+pub fn reconstruct_prepared(
+    subject_dir: &Path,
+    out: &Path,
+    opts: &SkinOptions,
+    prepared: Option<&crate::tet::TemplateTet>,
+    log: &Log,
+) -> Result<crate::link::LinkModel> {
     let t0 = Instant::now();
     let subject = crate::mocap::subject::Subject::load(subject_dir)?;
     let template = template::load_template(subject.hand)?;
+    if let Some(p) = prepared {
+        if p.side != subject.hand {
+            return Err(Error::invalid(format!(
+                "{}: a {} hand, but the prepared tetrahedral template is of the {} hand",
+                subject_dir.display(),
+                subject.hand,
+                p.side
+            )));
+        }
+        let shared = || Ok((TetSource::Shared(p), 0.0));
+        return reconstruct_stages(&subject, &template, shared, out, opts, log, t0);
+    }
     // Section 3.7's template-only work (tet mesh from the cache, binding, factorisation) needs
     // nothing of the subject: it runs on a second thread while the link model and the skin are
     // fitted.
     std::thread::scope(|scope| {
-        let prepared = scope.spawn(|| {
+        let handle = scope.spawn(|| {
             let t = Instant::now();
             crate::tet::TemplateTet::prepare(&template, None).map(|p| (p, t.elapsed()))
         });
-        reconstruct_stages(&subject, &template, prepared, out, opts, log, t0)
+        let joined = || {
+            let (p, d) = handle
+                .join()
+                .map_err(|_| Error::invalid("tet: the template preparation thread panicked"))??;
+            Ok((TetSource::Own(p), d.as_secs_f64()))
+        };
+        reconstruct_stages(&subject, &template, joined, out, opts, log, t0)
     })
 }
 
-/// The stages of [`reconstruct_with`] after loading, with the template's tet preparation
-/// running on `prepared`.
-fn reconstruct_stages(
+/// The template's prepared tet stage, shared by a batch or made for one subject.
+enum TetSource<'a> {
+    Shared(&'a crate::tet::TemplateTet),
+    Own(crate::tet::TemplateTet),
+}
+
+impl std::ops::Deref for TetSource<'_> {
+    type Target = crate::tet::TemplateTet;
+    fn deref(&self) -> &Self::Target {
+        match self {
+            TetSource::Shared(p) => p,
+            TetSource::Own(p) => p,
+        }
+    }
+}
+
+/// The stages of [`reconstruct_prepared`] after loading; `prepared_tet` hands over (or waits
+/// for) the template's prepared tet stage and the seconds its preparation took.
+fn reconstruct_stages<'p>(
     subject: &crate::mocap::subject::Subject,
     template: &template::TemplateHand,
-    prepared: std::thread::ScopedJoinHandle<
-        '_,
-        Result<(crate::tet::TemplateTet, std::time::Duration)>,
-    >,
+    prepared_tet: impl FnOnce() -> Result<(TetSource<'p>, f64)>,
     out: &Path,
     opts: &SkinOptions,
     log: &Log,
@@ -295,9 +340,7 @@ fn reconstruct_stages(
     // Section 3.7: the template's tetrahedral mesh (cached) carried to the subject.
     let t2 = Instant::now();
     log.info("tet: template tetrahedral mesh (cached after the first run), elastic deformation");
-    let (template_tet, t_prepare) = prepared
-        .join()
-        .map_err(|_| Error::invalid("tet: the template preparation thread panicked"))??;
+    let (template_tet, t_prepare) = prepared_tet()?;
     let (tet, tet_report) = template_tet.deform(&skin.high)?;
     let t_tet = t2.elapsed().as_secs_f64();
     // The skinned individual hand (issue 7).
@@ -334,7 +377,7 @@ fn reconstruct_stages(
             ("link", t_link),
             ("skin", t_skin),
             ("tet", t_tet),
-            ("tet_template_prepare_parallel", t_prepare.as_secs_f64()),
+            ("tet_template_prepare_parallel", t_prepare),
             ("hand", t_hand),
         ]
         .into_iter()

@@ -92,6 +92,8 @@ pub fn template_tet_mesh_with(
 /// and the ARAP iterations; `reconstruct` prepares it on a second thread while the link model
 /// and the skin are fitted, and a batch can share one per hand.
 pub struct TemplateTet {
+    /// Which hand's template.
+    pub side: crate::anatomy::Side,
     /// `R_temp`.
     pub tet: TetMesh,
     /// Its boundary nodes bound to the template's high-resolution surface.
@@ -113,6 +115,7 @@ impl TemplateTet {
         let binding = bind_boundary(&tet, &template.mesh)?;
         let solver = ElasticSolver::new(&tet, &binding.nodes)?;
         Ok(TemplateTet {
+            side: template.side,
             tet,
             binding,
             solver,
