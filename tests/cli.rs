@@ -193,7 +193,10 @@ fn reconstruct_and_validate_a_simulated_subject() {
         .unwrap();
     assert_eq!(glb.meshes.len(), 1);
     assert_eq!(glb.meshes[0].mesh.n_vertices(), skin.n_vertices());
-    assert_eq!(glb.meshes[0].colors.as_ref().unwrap().len(), skin.n_vertices());
+    assert_eq!(
+        glb.meshes[0].colors.as_ref().unwrap().len(),
+        skin.n_vertices()
+    );
     assert!(metrics["surface_reverse"]["mean_mm"].as_f64().unwrap() < 1.0);
     assert_eq!(metrics["joint_fits"].as_array().unwrap().len(), 16);
     let report: serde_json::Value =

@@ -166,7 +166,7 @@ pub fn colour_bar_ticks(
     let black = [0, 0, 0];
     let span = max - min;
     for (v, text) in ticks {
-        if !(span > 0.0) || *v < min - 1e-12 || *v > max + 1e-12 {
+        if span.is_nan() || span <= 0.0 || *v < min - 1e-12 || *v > max + 1e-12 {
             continue;
         }
         let y = bottom - (((v - min) / span) * (bottom - top) as f64).round() as i64;
@@ -235,7 +235,11 @@ mod tests {
             .unwrap()
             + 2;
         let ys: Vec<u32> = (0..bar.height)
-            .filter(|&y| bar.pixel(col, y).is_some_and(|c| c != [255, 255, 255] && c != [0, 0, 0]))
+            // Colour, not the grey of text or white.
+            .filter(|&y| {
+                bar.pixel(col, y)
+                    .is_some_and(|c| c[0] != c[1] || c[1] != c[2])
+            })
             .collect();
         let (top, bottom) = (ys[0], *ys.last().unwrap());
         assert_eq!(bar.pixel(col, bottom), Some(viridis(0.0)));

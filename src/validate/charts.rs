@@ -107,10 +107,7 @@ pub fn histogram<DB: DrawingBackend>(
                 }
             }
             let total = values.len().max(1) as f64;
-            counts
-                .iter()
-                .map(|&c| 100.0 * c as f64 / total)
-                .collect()
+            counts.iter().map(|&c| 100.0 * c as f64 / total).collect()
         })
         .collect();
     let top = shares

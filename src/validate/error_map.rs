@@ -154,7 +154,11 @@ pub fn colour_scale_top(values: &[f64]) -> f64 {
 /// Ticks every 0.5 or 1 mm (whichever gives at most 8) from 0 to `top`; the last one reads
 /// "≥ top" when values beyond it were clamped.
 fn ticks(top: f64, clamped: bool) -> Vec<(f64, String)> {
-    let step = if top / 0.5 <= 8.0 { 0.5 } else { (top / 8.0).ceil() };
+    let step = if top / 0.5 <= 8.0 {
+        0.5
+    } else {
+        (top / 8.0).ceil()
+    };
     let n = (top / step).round() as usize;
     (0..=n)
         .map(|k| {
@@ -170,9 +174,9 @@ fn ticks(top: f64, clamped: bool) -> Vec<(f64, String)> {
 }
 
 /// Pictures of `skin` coloured by `values` (mm, one per vertex) on viridis from 0 to `top`:
-/// the four views of [`hand_views`] side by side at one common scale (so sizes compare), each
-/// named under it, a colour bar in mm at the right and `title` above. `view_px` is the width
-/// of one view (height 1.45×).
+/// the first `n_views` (1 to 4) views of [`hand_views`] side by side at one common scale (so
+/// sizes compare), each named under it, a colour bar in mm at the right and `title` above.
+/// `view_px` is the width of one view (height 1.45×).
 pub fn render_error_views(
     skin: &TriMesh,
     values: &[f64],
@@ -180,6 +184,7 @@ pub fn render_error_views(
     top: f64,
     title: &str,
     view_px: u32,
+    n_views: usize,
 ) -> Result<Image> {
     if values.len() != skin.n_vertices() {
         return Err(Error::invalid(format!(
@@ -189,10 +194,12 @@ pub fn render_error_views(
         )));
     }
     let colours = map_values(values, 0.0, top);
-    let views = hand_views(directions.0, directions.1, directions.2).map(|(n, v)| {
-        let v = v.fit_mesh(skin, 0.04);
-        (n, v)
-    });
+    let n_views = n_views.clamp(1, 4);
+    let views: Vec<(&str, View)> = hand_views(directions.0, directions.1, directions.2)
+        .into_iter()
+        .take(n_views)
+        .map(|(n, v)| (n, v.fit_mesh(skin, 0.04)))
+        .collect();
     // One scale for all four: the largest extents.
     let (hw, hh) = views.iter().fold((0.0f64, 0.0f64), |(a, b), (_, v)| {
         let (w, h) = v.half_extents();
@@ -206,10 +213,15 @@ pub fn render_error_views(
         ..RenderOptions::default()
     };
     let size = (view_px as f64 / 20.0).clamp(11.0, 18.0);
-    let head = if title.is_empty() { 0 } else { (size * 2.2) as u32 };
+    let head = if title.is_empty() {
+        0
+    } else {
+        (size * 2.2) as u32
+    };
     let foot = (size * 2.0) as u32;
     let bar_w = (view_px as f64 * 0.55) as u32;
-    let mut img = Image::new(4 * vw + bar_w, head + vh + foot, [255, 255, 255]);
+    let nv = views.len() as u32;
+    let mut img = Image::new(nv * vw + bar_w, head + vh + foot, [255, 255, 255]);
     for (k, (name, v)) in views.iter().enumerate() {
         let v = v.with_frame(v.center(), hw, hh);
         let tile = render_mesh_with(skin, Some(&colours), &v, vw, vh, &opts);
@@ -230,11 +242,11 @@ pub fn render_error_views(
         0.0,
         top,
         &ticks(top, clamped),
-        "distance (mm)",
+        if view_px < 150 { "mm" } else { "distance (mm)" },
         bar_w,
         (vh as f64 * 0.8) as u32,
     )?;
-    img.blit(&bar, (4 * vw) as i64, (head + vh / 10) as i64);
+    img.blit(&bar, (nv * vw) as i64, (head + vh / 10) as i64);
     if !title.is_empty() {
         draw_label_sized(&mut img, 12, (size * 0.5) as i32, title, [20, 20, 20], size)?;
     }
@@ -311,7 +323,10 @@ mod tests {
             .map(|(a, b)| (s.vertices[a] - s.vertices[b]).norm())
             .fold(0.0, f64::max);
         let sag = 20.0 * (1.0 - (e / 40.0).cos());
-        assert!(f.min_mm > 1.0 - 1e-9 && f.max_mm < 1.0 + sag + 1e-9, "{f:?}");
+        assert!(
+            f.min_mm > 1.0 - 1e-9 && f.max_mm < 1.0 + sag + 1e-9,
+            "{f:?}"
+        );
         let r = &m.reference_to_skin_stats;
         assert!(r.mean_mm > 0.95 && r.max_mm < 1.0 + 1e-9, "{r:?}");
         // The stride caps the reverse sample and is reported.

@@ -39,7 +39,7 @@ pub struct MarkerTrack {
 impl MarkerTrack {
     /// Distance of every sample to the centre, mm.
     pub fn radii(&self) -> Vec<f64> {
-        self.points.iter().map(|p| norm(p)).collect()
+        self.points.iter().map(norm).collect()
     }
 }
 
@@ -178,9 +178,7 @@ fn joint_fit(
         .and_then(|m| serde_json::from_value::<[f64; 3]>(m.clone()).ok());
     let centre_global = motion.unwrap_or(rec.centre);
     let centre = to_local.apply(&Point::from(v3(centre_global)));
-    let rows = rec
-        .frame
-        .map(|r| to_local.apply_vector(&v3(r)).normalize());
+    let rows = rec.frame.map(|r| to_local.apply_vector(&v3(r)).normalize());
     let (parent, child) = marker_sets(j);
     let parent: Vec<&str> = parent.iter().map(String::as_str).collect();
     let reg = register_parent(traj, &parent, rf);
@@ -244,8 +242,8 @@ mod tests {
             ..SynthOptions::new(61, Preset::Clean)
         })
         .unwrap();
-        let m = estimate_link_model_from(s.subject.hand, s.subject.reference_frame, &s.trials)
-            .unwrap();
+        let m =
+            estimate_link_model_from(s.subject.hand, s.subject.reference_frame, &s.trials).unwrap();
         let json: serde_json::Value = serde_json::from_str(&m.to_json()).unwrap();
         let table: BTreeMap<String, JointRecord> =
             serde_json::from_value(json["joints"].clone()).unwrap();

@@ -7,9 +7,9 @@
 //! centre minus its mean (the fitted radius). Figure 9: mean and SD of every child marker's
 //! distance to its joint's centre.
 
+use super::charts::{histogram, plot_err, save_both, Figure, FIT, GRID, INK, TRAJ};
 use super::joint_fit::{JointFit, MarkerTrack};
 use crate::anatomy::{Finger, Joint};
-use super::charts::{histogram, plot_err, save_both, Figure, FIT, GRID, INK, TRAJ};
 use crate::error::Result;
 use crate::render::plot_font_family;
 use plotters::coord::Shift;
@@ -28,7 +28,10 @@ fn thin(points: &[(f64, f64)]) -> Vec<(f64, f64)> {
 fn mean_sd(x: &[f64]) -> (f64, f64) {
     let n = x.len().max(1) as f64;
     let m = x.iter().sum::<f64>() / n;
-    (m, (x.iter().map(|v| (v - m).powi(2)).sum::<f64>() / n).sqrt())
+    (
+        m,
+        (x.iter().map(|v| (v - m).powi(2)).sum::<f64>() / n).sqrt(),
+    )
 }
 
 fn circle(cx: f64, cy: f64, r: f64) -> Vec<(f64, f64)> {
@@ -66,7 +69,10 @@ fn projection<DB: DrawingBackend>(
         .titled(caption, (font, 14).into_font().color(&INK))
         .map_err(|e| err(&e))?;
     let (w, h) = area.dim_in_pixel();
-    let (pw, ph) = ((w as f64 - 12.0 - 44.0).max(1.0), (h as f64 - 12.0 - 34.0).max(1.0));
+    let (pw, ph) = (
+        (w as f64 - 12.0 - 44.0).max(1.0),
+        (h as f64 - 12.0 - 34.0).max(1.0),
+    );
     let (hx, hy) = if pw > ph {
         (half * pw / ph, half)
     } else {
@@ -269,12 +275,8 @@ fn radius_chart<DB: DrawingBackend>(
     let n = markers.len().max(1) as f64;
     let parts = area.split_evenly((2, 1));
     let rmax = markers.iter().map(|m| m.2.radius_mean).fold(10.0, f64::max) * 1.1;
-    let sdmax = markers
-        .iter()
-        .map(|m| m.2.radius_sd)
-        .fold(0.05, f64::max)
-        * 1.15;
-    let colour = |k: usize| if k % 2 == 0 { FIT } else { TRAJ };
+    let sdmax = markers.iter().map(|m| m.2.radius_sd).fold(0.05, f64::max) * 1.15;
+    let colour = |k: usize| if k.is_multiple_of(2) { FIT } else { TRAJ };
     let mut top = ChartBuilder::on(&parts[0])
         .caption(
             "mean distance of each child marker to its joint centre (± SD)",
@@ -297,7 +299,11 @@ fn radius_chart<DB: DrawingBackend>(
         .map_err(|e| err(&e))?;
     // ± SD bars with short caps.
     top.draw_series(markers.iter().enumerate().flat_map(|(i, (k, _, m))| {
-        let (x, lo, hi) = (i as f64, m.radius_mean - m.radius_sd, m.radius_mean + m.radius_sd);
+        let (x, lo, hi) = (
+            i as f64,
+            m.radius_mean - m.radius_sd,
+            m.radius_mean + m.radius_sd,
+        );
         let style = colour(*k).stroke_width(2);
         [
             PathElement::new(vec![(x, lo), (x, hi)], style),
@@ -343,10 +349,13 @@ fn radius_chart<DB: DrawingBackend>(
         }))
         .map_err(|e| err(&e))?;
     // Joint names under their groups of markers.
-    let style = (font, 12).into_font().color(&INK).pos(plotters::style::text_anchor::Pos::new(
-        plotters::style::text_anchor::HPos::Center,
-        plotters::style::text_anchor::VPos::Top,
-    ));
+    let style = (font, 12)
+        .into_font()
+        .color(&INK)
+        .pos(plotters::style::text_anchor::Pos::new(
+            plotters::style::text_anchor::HPos::Center,
+            plotters::style::text_anchor::VPos::Top,
+        ));
     for (k, f) in fits.iter().enumerate() {
         let idx: Vec<usize> = markers
             .iter()
@@ -358,8 +367,12 @@ fn radius_chart<DB: DrawingBackend>(
         let mid = (first + idx[idx.len() - 1]) as f64 / 2.0;
         let (x, y) = bottom.backend_coord(&(mid, 0.0));
         // `area` is the whole picture, whose origin is the backend's.
-        area.draw(&Text::new(f.joint.name().to_string(), (x, y + 8), style.clone()))
-            .map_err(|e| err(&e))?;
+        area.draw(&Text::new(
+            f.joint.name().to_string(),
+            (x, y + 8),
+            style.clone(),
+        ))
+        .map_err(|e| err(&e))?;
     }
     Ok(())
 }

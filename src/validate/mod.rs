@@ -8,6 +8,7 @@ pub mod charts;
 pub mod dimension_accuracy;
 pub mod distance_plots;
 pub mod error_map;
+pub mod joint_error_plots;
 pub mod joint_fit;
 pub mod joint_fit_plots;
 pub mod link_accuracy;

@@ -3,12 +3,12 @@
 //! and charts (PNG and SVG) beside it, the error map as a vertex-coloured GLB, and the person's
 //! report `report.html` (self-contained) and `report.md` (linking the pictures).
 
+use super::charts::Figure;
 use super::dimension_accuracy::{dimension_accuracy, DimensionAccuracy};
 use super::error_map::{
     colour_scale_top, error_map, hand_directions, render_error_views, write_error_map_glb,
 };
 use super::joint_fit::{joint_fits, JointFit};
-use super::charts::Figure;
 use super::joint_fit_plots::{joint_fit_figures, radius_figure};
 use super::link_accuracy::{compare, read_joints, LinkAccuracy};
 use super::surface_error::SurfaceError;
@@ -117,6 +117,8 @@ pub struct ReportFigures {
     pub error_map: (PathBuf, Vec<u8>),
     /// Histograms of both distance directions.
     pub distances: Figure,
+    /// Centre and axis errors per joint.
+    pub joint_errors: Figure,
     /// Figure 8, per digit.
     pub fits: Vec<Figure>,
     /// Figure 9.
@@ -209,11 +211,11 @@ pub fn validate_subject(
         map.skin_to_reference_stats.p95_mm,
         map.skin_to_reference_stats.max_mm
     );
-    let views = render_error_views(&skin, &map.skin_to_reference, dirs, top, &title, 300)?;
+    let views = render_error_views(&skin, &map.skin_to_reference, dirs, top, &title, 300, 4)?;
     let map_png = views.to_png()?;
     let map_path = report.join("error-map.png");
     write_bytes_atomic(&map_path, &map_png)?;
-    let thumb = render_error_views(&skin, &map.skin_to_reference, dirs, top, "", 110)?;
+    let thumb = render_error_views(&skin, &map.skin_to_reference, dirs, top, "", 100, 2)?;
     let thumbnail_png = thumb.to_png()?;
     write_bytes_atomic(&report.join("error-map-small.png"), &thumbnail_png)?;
     write_error_map_glb(
@@ -225,6 +227,7 @@ pub fn validate_subject(
     lap("error map pictures and GLB", &mut t);
 
     let distances = super::distance_plots::distance_histograms(&map, report)?;
+    let joint_errors = super::joint_error_plots::joint_error_figure(&link, report)?;
     let fit_figures = joint_fit_figures(&fits, report)?;
     let radii = radius_figure(&fits, report)?;
     lap("charts (PNG and SVG)", &mut t);
@@ -232,6 +235,7 @@ pub fn validate_subject(
     let figures = ReportFigures {
         error_map: (map_path, map_png),
         distances,
+        joint_errors,
         fits: fit_figures,
         radii,
     };
@@ -243,7 +247,8 @@ pub fn validate_subject(
         "error-map-small.png".into(),
         "error-map.glb".into(),
     ];
-    for f in std::iter::once(&figures.distances)
+    for f in [&figures.distances, &figures.joint_errors]
+        .into_iter()
         .chain(&figures.fits)
         .chain(std::iter::once(&figures.radii))
     {

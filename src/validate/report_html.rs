@@ -36,7 +36,7 @@ pub fn base64(bytes: &[u8]) -> String {
 /// character or a bad length.
 pub fn base64_decode(text: &str) -> Option<Vec<u8>> {
     let t = text.as_bytes();
-    if t.len() % 4 != 0 {
+    if !t.len().is_multiple_of(4) {
         return None;
     }
     let val = |c: u8| ALPHABET.iter().position(|&a| a == c).map(|p| p as u32);
@@ -84,10 +84,7 @@ pub fn check_self_contained(html: &str) -> std::result::Result<usize, String> {
     let mut n = 0;
     let mut rest = html;
     while let Some(i) = rest.find("<img") {
-        let tag_end = rest[i..]
-            .find('>')
-            .ok_or("an <img> tag is not closed")?
-            + i;
+        let tag_end = rest[i..].find('>').ok_or("an <img> tag is not closed")? + i;
         let tag = &rest[i..tag_end];
         let src = tag
             .split_once("src=\"")
@@ -158,6 +155,8 @@ ul.warn{margin:6px 0;padding-left:20px;font-size:13.5px}
 ul.files{columns:3;font-size:13px;padding-left:18px}
 a{color:var(--accent)}
 code{font-size:12.5px;background:#f0f2f5;padding:1px 4px;border-radius:4px}
+header.top code{background:#24345a;color:#e8eef9}
+.scroll{overflow-x:auto}
 footer{color:var(--muted);font-size:12.5px;padding-top:8px;padding-bottom:40px}
 "#;
 
@@ -320,8 +319,14 @@ pub fn subject_html(v: &SubjectValidation, figs: &ReportFigures) -> String {
     b.push_str("</details></section>\n");
 
     // 3. Joint centres and axes.
-    b.push_str("<section id=\"joint-centres\"><h2>3 · Joint centres and axes against the truth</h2>");
+    b.push_str(
+        "<section id=\"joint-centres\"><h2>3 · Joint centres and axes against the truth</h2>",
+    );
     b.push_str("<p class=\"lead\">Distance between each estimated joint centre (<code>link_model.json</code>) and the true one (<code>truth.json</code>), and the angle between estimated and true hinge axes.</p>");
+    b.push_str(&chart(
+        &figs.joint_errors,
+        "Left: distance between estimated and true centre per joint. Right: angle between estimated and true axis per hinge joint.",
+    ));
     b.push_str(&table_html(&tables::joint_table(v)));
     b.push_str("</section>\n");
 
@@ -359,11 +364,7 @@ pub fn subject_html(v: &SubjectValidation, figs: &ReportFigures) -> String {
         b.push_str(&format!("<li><a href=\"{0}\">{0}</a></li>", esc(f)));
     }
     b.push_str("</ul></section>\n");
-    page(
-        &format!("ergohand validation · {}", v.subject),
-        &header,
-        &b,
-    )
+    page(&format!("ergohand validation · {}", v.subject), &header, &b)
 }
 
 #[cfg(test)]
@@ -398,7 +399,10 @@ mod tests {
         assert_eq!(check_self_contained(&good), Ok(2));
         for bad in [
             "<img src=\"error-map.png\">".to_string(),
-            format!("<img src=\"data:image/png;base64,{}\">", base64(b"not a png")),
+            format!(
+                "<img src=\"data:image/png;base64,{}\">",
+                base64(b"not a png")
+            ),
             "<img src=\"data:image/png;base64,@@@@\">".to_string(),
             "<img alt=\"x\">".to_string(),
             format!("<link rel=\"stylesheet\" href=\"x.css\">{good}"),

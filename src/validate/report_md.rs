@@ -17,7 +17,11 @@ fn cell(s: &str) -> String {
 pub fn table_markdown(t: &Table) -> String {
     let mut s = format!(
         "| {} |\n|{}|\n",
-        t.head.iter().map(|h| cell(h)).collect::<Vec<_>>().join(" | "),
+        t.head
+            .iter()
+            .map(|h| cell(h))
+            .collect::<Vec<_>>()
+            .join(" | "),
         t.numeric
             .iter()
             .map(|&n| if n { "---:" } else { "---" })
@@ -91,6 +95,7 @@ pub fn subject_markdown(v: &SubjectValidation, figs: &ReportFigures) -> String {
     s.push_str(&chart(&figs.radii));
     s.push_str(&table_markdown(&tables::marker_radius_table(v)));
     s.push_str("## 3. Joint centres and axes against the truth\n\n");
+    s.push_str(&chart(&figs.joint_errors));
     s.push_str(&table_markdown(&tables::joint_table(v)));
     s.push_str("## 4. Dimensions\n\n");
     s.push_str(&table_markdown(&tables::dimension_table(v)));

@@ -4,7 +4,7 @@
 
 use super::report::SubjectValidation;
 use super::report_html::{esc, page, png_data_uri, table_html};
-use super::report_tables::{link_medians, Cell, Table};
+use super::report_tables::{link_medians, signed, Cell, Table};
 use crate::synth::SynthOptions;
 use std::collections::BTreeMap;
 use std::path::{Component, Path, PathBuf};
@@ -163,8 +163,8 @@ pub fn suite_index_html(rows: &[SuiteRow], dir: &Path) -> String {
     }
     b.push_str("</div>\n");
 
-    b.push_str("<section id=\"subjects\"><h2>Every subject</h2><p class=\"lead\">Each row links to the subject's full report (written under <code>validation/subjects/</code>, which is not committed: run the suite to get them). The picture is the subject's error map (dorsal, palmar, radial, ulnar), coloured 0 to the scale in the next column.</p>");
-    b.push_str("<table class=\"suite\"><thead><tr><th>subject</th><th>error map</th><th class=\"num\">scale top (mm)</th><th class=\"num\">skin → ref. mean / max (mm)</th><th class=\"num\">ref. → skin mean / max (mm)</th><th class=\"num\">centre error 3-DOF / 1-DOF, median (mm)</th><th class=\"num\">axis error, median (°)</th><th class=\"num\">dimensions skin − given (mm)</th><th class=\"num\">reconstruct / validate (s)</th></tr></thead><tbody>\n");
+    b.push_str("<section id=\"subjects\"><h2>Every subject</h2><p class=\"lead\">Each row links to the subject's full report (written under <code>validation/subjects/</code>, which is not committed: run the suite to get them). The picture is the subject's error map (dorsal and palmar views), coloured from 0 to the scale top in the next column.</p>");
+    b.push_str("<div class=\"scroll\"><table class=\"suite\"><thead><tr><th>subject</th><th>error map</th><th class=\"num\">scale top (mm)</th><th class=\"num\">skin → ref. mean / max (mm)</th><th class=\"num\">ref. → skin mean / max (mm)</th><th class=\"num\">median centre error 3-DOF / 1-DOF (mm)</th><th class=\"num\">median axis error (°)</th><th class=\"num\">dimensions skin − given (mm)</th><th class=\"num\">time reconstruct / validate (s)</th></tr></thead><tbody>\n");
     for r in rows {
         let v = r.validation;
         let (c3, c1, ax) = link_medians(v);
@@ -172,12 +172,12 @@ pub fn suite_index_html(rows: &[SuiteRow], dir: &Path) -> String {
         let rec: f64 = v.reconstruct_timings_s.values().sum();
         let val: f64 = v.validate_timings_s.iter().map(|x| x.1).sum();
         b.push_str(&format!(
-            "<tr><td><a href=\"{}\"><b>{}</b></a><br><span class=\"n\">{} · {} hand · {:?} posture{}</span></td><td><img class=\"thumb\" src=\"{}\" alt=\"error map of {}\"></td><td class=\"num\">{:.1}</td><td class=\"num\">{} / {}</td><td class=\"num\">{} / {}</td><td class=\"num\">{} / {}</td><td class=\"num\">{}</td><td class=\"num\">{:+.3} ± {:.3}</td><td class=\"num\">{:.1} / {:.1}</td></tr>\n",
+            "<tr><td><a href=\"{}\"><b>{}</b></a><br><span class=\"n\">{} · {} hand · {} posture{}</span></td><td><img class=\"thumb\" src=\"{}\" alt=\"error map of {}\"></td><td class=\"num\">{:.1}</td><td class=\"num\">{} / {}</td><td class=\"num\">{} / {}</td><td class=\"num\">{} / {}</td><td class=\"num\">{}</td><td class=\"num\">{} ± {:.3}</td><td class=\"num\">{:.1} / {:.1}</td></tr>\n",
             esc(&link),
             esc(&r.name),
             r.opts.preset.name(),
             r.opts.hand,
-            r.opts.posture,
+            format!("{:?}", r.opts.posture).to_lowercase(),
             if r.opts.repeat > 0 { format!(" · session {}", r.opts.repeat + 1) } else { String::new() },
             png_data_uri(&v.thumbnail_png),
             esc(&r.name),
@@ -189,13 +189,13 @@ pub fn suite_index_html(rows: &[SuiteRow], dir: &Path) -> String {
             f2(c3),
             f2(c1),
             f2(ax),
-            v.dimensions.mean_vs_given_mm,
+            signed(v.dimensions.mean_vs_given_mm, 3),
             v.dimensions.sd_vs_given_mm,
             rec,
             val
         ));
     }
-    b.push_str("</tbody></table></section>\n");
+    b.push_str("</tbody></table></div></section>\n");
 
     // Per preset.
     let mut presets: Vec<&str> = Vec::new();
@@ -300,7 +300,7 @@ pub fn suite_index_html(rows: &[SuiteRow], dir: &Path) -> String {
                     f2(*m),
                     f2(*sd),
                     f2(*tr),
-                    format!("{:+.2}", m - tr),
+                    signed(m - tr, 2),
                 ]
                 .into_iter()
                 .map(|text| Cell { text, flag: false })
@@ -313,13 +313,37 @@ pub fn suite_index_html(rows: &[SuiteRow], dir: &Path) -> String {
     let header = "<h1>Validation suite</h1><p>Every simulated subject of <code>validation/suite.toml</code>, reconstructed by <code>ergohand reconstruct</code> and measured by <code>ergohand validate</code> against its truth. Made by <code>ergohand validate --suite validation/</code>.</p><nav><a href=\"#subjects\">Subjects</a><a href=\"#summary\">Summary</a><a href=\"#repeatability\">Repeatability</a><a href=\"link-accuracy.md\">link-accuracy.md</a></nav>";
     page("ergohand validation suite", header, &b).replace(
         "</style>",
-        "img.thumb{width:300px;height:auto;border:0}table.suite td{vertical-align:middle}.n{color:var(--muted);font-size:12px}</style>",
+        "img.thumb{width:190px;height:auto;border:0}table.suite td{vertical-align:middle}table.suite th{white-space:normal;vertical-align:bottom}.n{color:var(--muted);font-size:12px}</style>",
     )
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The shipped suite holds repeated sessions of one hand, which `repeat_groups` joins by
+    /// their options without `repeat`.
+    #[test]
+    fn shipped_suite_has_a_repeatability_group() {
+        let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("validation/suite.toml");
+        let suite = crate::synth::suite::read_suite(&path).unwrap();
+        let key = |o: &SynthOptions| SynthOptions {
+            repeat: 0,
+            ..o.clone()
+        };
+        let biggest = suite
+            .iter()
+            .map(|(_, o)| suite.iter().filter(|(_, p)| key(p) == key(o)).count())
+            .max()
+            .unwrap();
+        assert!(biggest >= 5, "{biggest}");
+        let sessions: Vec<u32> = suite
+            .iter()
+            .filter(|(n, _)| n.starts_with("typical-r1"))
+            .map(|(_, o)| o.repeat)
+            .collect();
+        assert_eq!(sessions, vec![0, 1, 2, 3, 4]);
+    }
 
     #[test]
     fn relative_links_between_folders() {
