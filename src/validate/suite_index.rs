@@ -293,7 +293,15 @@ pub fn suite_index_html(rows: &[SuiteRow], dir: &Path) -> String {
             summary_rows: 0,
             note: "SD over the sessions (n − 1).".into(),
         };
-        for (k, (m, sd, tr)) in &g.links {
+        // Digit order (thumb to little), proximal first.
+        let mut links: Vec<(&String, &(f64, f64, f64))> = g.links.iter().collect();
+        links.sort_by_key(|(k, _)| {
+            k.split('-')
+                .next()
+                .and_then(crate::anatomy::Joint::from_name)
+                .map_or(usize::MAX, |j| j.index())
+        });
+        for (k, (m, sd, tr)) in links {
             t.rows.push(
                 [
                     k.replace('-', " – "),
