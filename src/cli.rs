@@ -453,70 +453,18 @@ pub fn pose(model: &Path, pose: &str, out: &Path, keep_angles: bool, log: &Log) 
     crate::pose::pose_command_with(model, pose, out, &opts, log).map(|_| ())
 }
 
-/// What `validate` measured.
-#[derive(Clone, Debug, serde::Serialize)]
-pub struct Validation {
-    /// Joint centres, axes and link lengths against `truth.json`.
-    pub link: crate::validate::LinkAccuracy,
-    /// `skin.obj` against `reference.ply`.
-    pub surface: crate::validate::SurfaceError,
-    /// The caliper dimensions measured on `skin.obj`.
-    pub dimensions: crate::validate::DimensionAccuracy,
-}
-
-/// The dimensions of `subject_dir` measured on `model/skin.obj`, with the truth when given.
-fn measure_dimensions(
-    subject_dir: &Path,
-    model: &Path,
-    truth: Option<&Path>,
-) -> Result<crate::validate::DimensionAccuracy> {
-    let subject = crate::mocap::subject::Subject::load(subject_dir)?;
-    let skin_path = model.join("skin.obj");
-    let skin = obj::read_obj(&skin_path, Units::Millimetres)?;
-    let true_dims = match truth {
-        Some(p) => {
-            let text = std::fs::read_to_string(p).map_err(|e| Error::io(p, e))?;
-            let t: synth::Truth = serde_json::from_str(&text)
-                .map_err(|e| Error::input(p, format!("not a truth file: {e}")))?;
-            Some(t.dimensions)
-        }
-        None => None,
-    };
-    crate::validate::dimension_accuracy(
-        &skin,
-        &skin_path,
-        subject.hand,
-        &subject.dimensions,
-        true_dims.as_ref(),
-    )
-}
+/// What `validate` measured (see [`crate::validate::SubjectValidation`]).
+pub type Validation = crate::validate::SubjectValidation;
 
 /// `ergohand validate SUBJECT_DIR --model OUT [--report DIR]`: the link model against
 /// `truth.json` (per-joint centre and axis errors, link lengths), `skin.obj` against
-/// `reference.ply`, and the caliper dimensions measured on `skin.obj`, into
-/// `DIR/metrics.json`, and tables on stdout.
+/// `reference.ply` both ways, the caliper dimensions measured on `skin.obj` and the joint fits
+/// of the seed paper's Figures 8-9, into `DIR/metrics.json`, `DIR/report.html` (self-contained)
+/// and `DIR/report.md` with the pictures and charts beside them; tables on stdout.
 pub fn validate(subject_dir: &Path, model: &Path, report: &Path, log: &Log) -> Result<Validation> {
-    let truth = subject_dir.join("truth.json");
-    if !truth.exists() {
-        return Err(Error::input(
-            &truth,
-            "missing: only simulated subjects carry truth.json; the surface checks against reference.ply come with issue 9",
-        ));
-    }
-    let acc = crate::validate::link_accuracy(&model.join("link_model.json"), &truth)?;
-    let surface = crate::validate::surface_error(
-        &model.join("skin.obj"),
-        &subject_dir.join("reference.ply"),
-    )?;
-    let dims = measure_dimensions(subject_dir, model, Some(&truth))?;
-    create_dir(report)?;
-    let v = Validation {
-        link: acc,
-        surface,
-        dimensions: dims,
-    };
-    let json = serde_json::to_string_pretty(&v).expect("serialisable");
-    atomic::write_bytes_atomic(&report.join("metrics.json"), json.as_bytes())?;
+    let spinner = log.progress(1, "validate");
+    let (v, _) = crate::validate::validate_subject(subject_dir, model, report)?;
+    spinner.finish_and_clear();
     let (acc, surface, dims) = (&v.link, &v.surface, &v.dimensions);
     if !log.quiet() {
         println!("joint    centre error (mm)   axis error (deg)");
@@ -530,6 +478,11 @@ pub fn validate(subject_dir: &Path, model: &Path, report: &Path, log: &Log) -> R
         println!(
             "skin.obj to reference.ply: mean {:.2} mm, SD {:.2}, 95th percentile {:.2}, max {:.2} mm over {} vertices",
             surface.mean_mm, surface.sd_mm, surface.p95_mm, surface.max_mm, surface.n
+        );
+        let r = &v.surface_reverse;
+        println!(
+            "reference.ply to skin.obj: mean {:.2} mm, SD {:.2}, 95th percentile {:.2}, max {:.2} mm over {} vertices",
+            r.mean_mm, r.sd_mm, r.p95_mm, r.max_mm, r.n
         );
         println!("link         estimated    true (mm)");
         for (k, (m, t)) in &acc.link_lengths {
@@ -550,6 +503,12 @@ pub fn validate(subject_dir: &Path, model: &Path, report: &Path, log: &Log) -> R
             "dimensions on skin - given: mean {:+.3} mm, SD {:.3} mm",
             dims.mean_vs_given_mm, dims.sd_vs_given_mm
         );
+        let secs: f64 = v.validate_timings_s.iter().map(|x| x.1).sum();
+        log.info(format!(
+            "validate: {:.1} s; open {}",
+            secs,
+            report.join("report.html").display()
+        ));
     }
     Ok(v)
 }
@@ -573,14 +532,15 @@ pub fn validate_suite(dir: &Path, report: &Path, log: &Log) -> Result<()> {
         let t0 = Instant::now();
         reconstruct(&sdir, &out, &Log::new(true))?;
         let secs = t0.elapsed().as_secs_f64();
-        let acc =
-            crate::validate::link_accuracy(&out.join("link_model.json"), &sdir.join("truth.json"))?;
-        let surf =
-            crate::validate::surface_error(&out.join("skin.obj"), &sdir.join("reference.ply"))?;
-        let dims = measure_dimensions(&sdir, &out, Some(&sdir.join("truth.json")))?;
-        let f = crate::validate::thresholds::Figures::measure(&acc, &surf, &dims, &out)?;
+        let (v, _) = crate::validate::validate_subject(&sdir, &out, &out.join("report"))?;
+        let f = crate::validate::thresholds::Figures::measure(
+            &v.link,
+            &v.surface,
+            &v.dimensions,
+            &out,
+        )?;
         figures.push((name.clone(), f));
-        rows.push((name.clone(), opts.clone(), acc, surf, dims, secs));
+        rows.push((name.clone(), opts.clone(), v, secs));
         pb.inc(1);
     }
     pb.finish_and_clear();
@@ -601,7 +561,8 @@ pub fn validate_suite(dir: &Path, report: &Path, log: &Log) -> Result<()> {
         "# Link model and skin accuracy on the validation suite\n\nGenerated by `ergohand validate --suite validation/`. Errors against each simulated subject's truth.json.\n\n| subject | preset | hand | posture | median centre error 3-DOF (mm) | median centre error 1-DOF (mm) | median axis error (deg) | max centre error (mm) | skin to reference mean / max (mm) | dimensions on skin − given, mean ± SD (mm) | reconstruct time (s) |\n|---|---|---|---|---|---|---|---|---|---|---|\n",
     );
     let mut summary = serde_json::Map::new();
-    for (name, o, acc, surf, dims, secs) in &rows {
+    for (name, o, v, secs) in &rows {
+        let (acc, surf, dims) = (&v.link, &v.surface, &v.dimensions);
         let c3: Vec<f64> = acc
             .joints
             .iter()
@@ -641,8 +602,23 @@ pub fn validate_suite(dir: &Path, report: &Path, log: &Log) -> Result<()> {
     let json =
         serde_json::to_string_pretty(&serde_json::Value::Object(summary)).expect("serialisable");
     atomic::write_bytes_atomic(&report.join("suite-metrics.json"), json.as_bytes())?;
+    let index_rows: Vec<crate::validate::suite_index::SuiteRow> = rows
+        .iter()
+        .map(|(name, o, v, _)| crate::validate::suite_index::SuiteRow {
+            name: name.clone(),
+            opts: o.clone(),
+            validation: v,
+            report: dir
+                .join("subjects")
+                .join(name)
+                .join("out/report/report.html"),
+        })
+        .collect();
+    let html = crate::validate::suite_index::suite_index_html(&index_rows, report);
+    atomic::write_bytes_atomic(&report.join("index.html"), html.as_bytes())?;
     if !log.quiet() {
         print!("{md}");
+        log.info(format!("open {}", report.join("index.html").display()));
     }
     // Issue 9's regression check: an error naming each figure worse than its threshold.
     crate::validate::thresholds::check_suite(&dir.join(crate::validate::thresholds::FILE), &figures)

@@ -145,6 +145,47 @@ fn reconstruct_and_validate_a_simulated_subject() {
         "{dims}"
     );
     assert!(dims["sd_vs_given_mm"].as_f64().unwrap() <= 0.05, "{dims}");
+    // Issue 9: the report a person reads, self-contained, with every section and picture.
+    let rep = out.join("rep");
+    let html = std::fs::read_to_string(rep.join("report.html")).unwrap();
+    let images = ergohand::validate::report_html::check_self_contained(&html).unwrap();
+    assert!(images >= 9, "{images} images");
+    for id in [
+        "error-map",
+        "joint-fits",
+        "joint-centres",
+        "dimensions",
+        "link-lengths",
+        "runtime",
+    ] {
+        assert!(html.contains(&format!("<section id=\"{id}\">")), "{id}");
+    }
+    assert!(!html.contains(ergohand::validate::report_html::RUNTIME_PLACEHOLDER));
+    // report.md links only files that exist beside it.
+    let md = std::fs::read_to_string(rep.join("report.md")).unwrap();
+    let links: Vec<&str> = md
+        .split("](")
+        .skip(1)
+        .map(|s| s.split(')').next().unwrap())
+        .collect();
+    assert!(links.len() >= 17, "{links:?}");
+    for l in links {
+        assert!(rep.join(l).is_file(), "report.md links {l}");
+    }
+    // The error map's GLB: the skin with one colour per vertex.
+    let glb =
+        ergohand::io::gltf::read_gltf(&rep.join("error-map.glb"), ergohand::io::Units::Metres)
+            .unwrap();
+    let skin = ergohand::io::obj::read_obj(&out.join("skin.obj"), ergohand::io::Units::Millimetres)
+        .unwrap();
+    assert_eq!(glb.meshes.len(), 1);
+    assert_eq!(glb.meshes[0].mesh.n_vertices(), skin.n_vertices());
+    assert_eq!(
+        glb.meshes[0].colors.as_ref().unwrap().len(),
+        skin.n_vertices()
+    );
+    assert!(metrics["surface_reverse"]["mean_mm"].as_f64().unwrap() < 1.0);
+    assert_eq!(metrics["joint_fits"].as_array().unwrap().len(), 16);
     let report: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap();
     assert_eq!(report["skin"]["inverted_faces"], 0);

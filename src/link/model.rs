@@ -122,7 +122,7 @@ struct LocalEstimate {
 }
 
 /// The parent and child marker sets of a joint.
-fn marker_sets(j: Joint) -> (Vec<String>, Vec<String>) {
+pub fn marker_sets(j: Joint) -> (Vec<String>, Vec<String>) {
     let strings = |v: &[&str]| v.iter().map(|s| s.to_string()).collect::<Vec<_>>();
     match j {
         Joint::Wrist => (strings(&arm_markers()), strings(&palm_markers())),

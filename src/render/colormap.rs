@@ -128,6 +128,64 @@ pub fn colour_bar(min_mm: f64, max_mm: f64, width: u32, height: u32) -> Result<I
     Ok(img)
 }
 
+/// A vertical colour bar `width × height` on white with `title` above it: the viridis gradient
+/// from `min` (bottom) to `max` (top), a tick and its label (e.g. `"1.5"`, `"≥ 3.0"`) to the
+/// right at each of `ticks` (value, label); ticks outside `[min, max]` are skipped.
+pub fn colour_bar_ticks(
+    min: f64,
+    max: f64,
+    ticks: &[(f64, String)],
+    title: &str,
+    width: u32,
+    height: u32,
+) -> Result<Image> {
+    let mut img = Image::new(width, height, [255, 255, 255]);
+    let size = (height as f64 / 24.0).clamp(10.0, 16.0);
+    let pad = (size * 0.75).ceil() as i64;
+    let head = if title.is_empty() {
+        0
+    } else {
+        (size * 1.8) as i64
+    };
+    let bar_w = ((width as f64 * 0.18) as i64).clamp(6, 32);
+    let (top, bottom) = (head + pad, height as i64 - pad - 1);
+    if bottom <= top || width < 8 {
+        return Ok(img);
+    }
+    let x0 = pad.min(width as i64 / 4);
+    if !title.is_empty() {
+        draw_label_sized(&mut img, x0 as i32, 2, title, [0, 0, 0], size)?;
+    }
+    for y in top..=bottom {
+        let t = (bottom - y) as f64 / (bottom - top) as f64;
+        let c = viridis(t);
+        for x in x0..x0 + bar_w {
+            img.set_pixel(x, y, c);
+        }
+    }
+    let black = [0, 0, 0];
+    let span = max - min;
+    for (v, text) in ticks {
+        if span.is_nan() || span <= 0.0 || *v < min - 1e-12 || *v > max + 1e-12 {
+            continue;
+        }
+        let y = bottom - (((v - min) / span) * (bottom - top) as f64).round() as i64;
+        for x in x0 + bar_w..x0 + bar_w + 5 {
+            img.set_pixel(x, y, black);
+        }
+        let (_, th) = label_size(text, size)?;
+        draw_label_sized(
+            &mut img,
+            (x0 + bar_w + 8) as i32,
+            (y - th as i64 / 2) as i32,
+            text,
+            black,
+            size,
+        )?;
+    }
+    Ok(img)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -162,6 +220,37 @@ mod tests {
         assert_eq!(m[1], viridis(1.0));
         assert_eq!(m[2], viridis(0.5));
         assert_eq!(m[3], [128, 128, 128]);
+    }
+
+    #[test]
+    fn ticked_bar_puts_ticks_at_their_values() {
+        let ticks: Vec<(f64, String)> = [0.0, 1.0, 2.0, 9.0]
+            .iter()
+            .map(|v| (*v, format!("{v:.1}")))
+            .collect();
+        let bar = colour_bar_ticks(0.0, 2.0, &ticks, "mm", 120, 240).unwrap();
+        // The strip's column: the first non-white pixel left to right at mid height.
+        let col = (0..bar.width)
+            .find(|&x| bar.pixel(x, 150) != Some([255, 255, 255]))
+            .unwrap()
+            + 2;
+        let ys: Vec<u32> = (0..bar.height)
+            // Colour, not the grey of text or white.
+            .filter(|&y| {
+                bar.pixel(col, y)
+                    .is_some_and(|c| c[0] != c[1] || c[1] != c[2])
+            })
+            .collect();
+        let (top, bottom) = (ys[0], *ys.last().unwrap());
+        assert_eq!(bar.pixel(col, bottom), Some(viridis(0.0)));
+        assert_eq!(bar.pixel(col, top), Some(viridis(1.0)));
+        // The tick of 1.0 sits halfway, just right of the strip.
+        let mid = (top + bottom) / 2;
+        let tick_x = (col..bar.width)
+            .find(|&x| bar.pixel(x, mid) == Some([0, 0, 0]))
+            .unwrap();
+        assert!(tick_x < col + 40);
+        assert!(colour_bar_ticks(0.0, 0.0, &ticks, "", 120, 240).is_ok());
     }
 
     #[test]

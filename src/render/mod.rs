@@ -10,11 +10,11 @@ pub mod colormap;
 mod raster;
 mod text;
 
-pub use colormap::{colour_bar, map_values, viridis};
+pub use colormap::{colour_bar, colour_bar_ticks, map_values, viridis};
 pub use raster::{
     draw_points, draw_segments, render_mesh, render_mesh_with, RenderOptions, Shading,
 };
-pub use text::{draw_label, draw_label_sized, label_size, LABEL_SIZE};
+pub use text::{draw_label, draw_label_sized, label_size, plot_font_family, LABEL_SIZE};
 
 use crate::error::{Error, Result};
 use crate::geometry::{Point, TriMesh, Vec3};

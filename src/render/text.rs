@@ -37,6 +37,24 @@ fn font_ready() -> Result<()> {
     }
 }
 
+/// The font family name for plotters charts, with the vendored DejaVu Sans registered under
+/// it. It is `sans-serif`, so that an SVG chart (whose text names its family) falls back to
+/// the viewer's own sans-serif font, while PNG charts use the vendored one.
+pub fn plot_font_family() -> Result<&'static str> {
+    static READY: OnceLock<bool> = OnceLock::new();
+    let ok = *READY.get_or_init(|| {
+        plotters::style::register_font("sans-serif", FontStyle::Normal, DEJAVU_SANS).is_ok()
+            && plotters::style::register_font("sans-serif", FontStyle::Bold, DEJAVU_SANS).is_ok()
+    });
+    if ok {
+        Ok("sans-serif")
+    } else {
+        Err(Error::invalid(
+            "the vendored font assets/fonts/DejaVuSans.ttf could not be loaded",
+        ))
+    }
+}
+
 /// Draw `text` with the top-left corner of its line box at pixel `(x, y)` in `colour`, at the default size
 /// ([`LABEL_SIZE`] px). Parts outside the image are clipped.
 pub fn draw_label(img: &mut Image, x: i32, y: i32, text: &str, colour: [u8; 3]) -> Result<()> {

@@ -28,6 +28,9 @@ struct SuiteEntry {
     voxel_mm: Option<f64>,
     #[serde(default)]
     marker_offset_mm: Option<f64>,
+    /// Capture session of the same hand (repeatability studies; default 0).
+    #[serde(default)]
+    repeat: Option<u32>,
 }
 
 /// Read a suite file: `(name, options)` per subject, in file order; names must be unique.
@@ -53,6 +56,7 @@ pub fn parse_suite(text: &str, path: &Path) -> Result<Vec<(String, SynthOptions)
         o.duration_s = e.duration_s;
         o.voxel_mm = e.voxel_mm.unwrap_or(o.voxel_mm);
         o.marker_offset_mm = e.marker_offset_mm.unwrap_or(o.marker_offset_mm);
+        o.repeat = e.repeat.unwrap_or(o.repeat);
         out.push((e.name, o));
     }
     Ok(out)

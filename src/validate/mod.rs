@@ -1,12 +1,26 @@
 //! Validation: reads a reconstruction's outputs and a subject's references (`truth.json`,
-//! `reference.ply`) and measures the errors. It only reads files the pipeline wrote; it never
-//! calls back into the stages.
+//! `reference.ply`) and measures the errors, then writes the report a person reads
+//! (`report.html`, `report.md`, pictures and charts). It reads the files the pipeline wrote and
+//! may call the stages' public functions on the subject's inputs (the joint trajectories are
+//! recomputed by the link module's registration); the pipeline never calls it.
 
+pub mod charts;
 pub mod dimension_accuracy;
+pub mod distance_plots;
+pub mod error_map;
+pub mod joint_error_plots;
+pub mod joint_fit;
+pub mod joint_fit_plots;
 pub mod link_accuracy;
+pub mod report;
+pub mod report_html;
+pub mod report_md;
+pub mod report_tables;
+pub mod suite_index;
 pub mod surface_error;
 pub mod thresholds;
 
 pub use dimension_accuracy::{dimension_accuracy, DimensionAccuracy};
 pub use link_accuracy::{link_accuracy, JointError, LinkAccuracy};
+pub use report::{validate_subject, SubjectValidation};
 pub use surface_error::{surface_error, SurfaceError};

@@ -4,6 +4,7 @@
 
 use crate::error::Result;
 use crate::geometry::closest_point::{closest_point_triangle, AabbTree};
+use crate::geometry::{Point, TriMesh};
 use crate::io::{obj, ply, Units};
 use serde::Serialize;
 use std::path::Path;
@@ -25,18 +26,38 @@ pub struct SurfaceError {
     pub p95_mm: f64,
 }
 
-/// Distances of the vertices of `skin` (OBJ, mm) to the surface `reference` (PLY, mm).
-pub fn surface_error(skin: &Path, reference: &Path) -> Result<SurfaceError> {
-    let s = obj::read_obj(skin, Units::Millimetres)?;
-    let r = ply::read_ply(reference, Units::Millimetres)?.mesh;
-    let tree = AabbTree::new(&r);
-    // The tree returns a non-finite distance for a handful of points near degenerate (zero-area)
-    // triangles of an isosurface; those points are measured by brute force over the faces that
-    // give finite distances, so no vertex is silently left out.
-    let d: Vec<f64> = tree
-        .distances(&s.vertices)
+impl SurfaceError {
+    /// Mean, SD (population), min, max and 95th percentile (nearest rank below) of `d`.
+    pub fn of(d: &[f64]) -> SurfaceError {
+        let mut d = d.to_vec();
+        d.sort_by(f64::total_cmp);
+        let n = d.len().max(1);
+        let mean = d.iter().sum::<f64>() / n as f64;
+        let sd = (d.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / n as f64).sqrt();
+        SurfaceError {
+            n: d.len(),
+            mean_mm: mean,
+            sd_mm: sd,
+            min_mm: d.first().copied().unwrap_or(0.0),
+            max_mm: d.last().copied().unwrap_or(0.0),
+            p95_mm: d
+                .get((0.95 * (d.len().saturating_sub(1)) as f64) as usize)
+                .copied()
+                .unwrap_or(0.0),
+        }
+    }
+}
+
+/// Unsigned distance of every point of `points` to the surface of `tree`, in order.
+///
+/// The tree returns a non-finite distance for a handful of points near degenerate (zero-area)
+/// triangles of an isosurface; those points are measured by brute force over the faces that
+/// give finite distances, so no point is silently left out.
+pub fn distances_to_surface(points: &[Point], tree: &AabbTree) -> Vec<f64> {
+    let r: &TriMesh = tree.mesh();
+    tree.distances(points)
         .into_iter()
-        .zip(&s.vertices)
+        .zip(points)
         .map(|(x, p)| match x {
             Some(x) if x.is_finite() => x,
             _ => (0..r.n_faces())
@@ -47,21 +68,13 @@ pub fn surface_error(skin: &Path, reference: &Path) -> Result<SurfaceError> {
                 .filter(|x| x.is_finite())
                 .fold(f64::INFINITY, f64::min),
         })
-        .collect();
-    let mut d = d;
-    d.sort_by(f64::total_cmp);
-    let n = d.len().max(1);
-    let mean = d.iter().sum::<f64>() / n as f64;
-    let sd = (d.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / n as f64).sqrt();
-    Ok(SurfaceError {
-        n: d.len(),
-        mean_mm: mean,
-        sd_mm: sd,
-        min_mm: d.first().copied().unwrap_or(0.0),
-        max_mm: d.last().copied().unwrap_or(0.0),
-        p95_mm: d
-            .get((0.95 * (d.len().saturating_sub(1)) as f64) as usize)
-            .copied()
-            .unwrap_or(0.0),
-    })
+        .collect()
+}
+
+/// Distances of the vertices of `skin` (OBJ, mm) to the surface `reference` (PLY, mm).
+pub fn surface_error(skin: &Path, reference: &Path) -> Result<SurfaceError> {
+    let s = obj::read_obj(skin, Units::Millimetres)?;
+    let r = ply::read_ply(reference, Units::Millimetres)?.mesh;
+    let tree = AabbTree::new(&r);
+    Ok(SurfaceError::of(&distances_to_surface(&s.vertices, &tree)))
 }

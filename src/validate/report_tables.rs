@@ -1,0 +1,394 @@
+//! The tables of a subject's report, built once and written both as HTML and as Markdown.
+
+use super::report::SubjectValidation;
+use crate::anatomy::Joint;
+
+/// One table cell.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Cell {
+    /// The text shown.
+    pub text: String,
+    /// Highlight the cell (a value beyond the report's attention threshold).
+    pub flag: bool,
+}
+
+impl Cell {
+    fn new(text: impl Into<String>) -> Cell {
+        Cell {
+            text: text.into(),
+            flag: false,
+        }
+    }
+    fn flagged(text: impl Into<String>, flag: bool) -> Cell {
+        Cell {
+            text: text.into(),
+            flag,
+        }
+    }
+}
+
+/// A table: header, rows, which columns are numbers (right-aligned), a note under it.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Table {
+    /// Column headings.
+    pub head: Vec<String>,
+    /// Rows of cells.
+    pub rows: Vec<Vec<Cell>>,
+    /// Per column: numeric (right-aligned).
+    pub numeric: Vec<bool>,
+    /// Rows set apart as a summary at the bottom (the last `summary_rows` rows).
+    pub summary_rows: usize,
+    /// A sentence under the table (empty: none).
+    pub note: String,
+}
+
+impl Table {
+    fn new(head: &[&str], numeric: &[bool]) -> Table {
+        Table {
+            head: head.iter().map(|s| s.to_string()).collect(),
+            rows: Vec::new(),
+            numeric: numeric.to_vec(),
+            summary_rows: 0,
+            note: String::new(),
+        }
+    }
+}
+
+/// Centre errors above this are highlighted, mm.
+pub const FLAG_CENTRE_MM: f64 = 2.0;
+/// Axis errors above this are highlighted, degrees.
+pub const FLAG_AXIS_DEG: f64 = 3.0;
+/// Differences from the given dimensions above this are highlighted, mm.
+pub const FLAG_DIMENSION_MM: f64 = 0.5;
+/// Differences from the true dimensions above this are highlighted, mm (the simulated
+/// calipers alone are off by up to about 1 mm).
+pub const FLAG_DIMENSION_TRUE_MM: f64 = 1.0;
+
+fn f2(x: f64) -> String {
+    if x.is_finite() {
+        format!("{x:.2}")
+    } else {
+        "–".into()
+    }
+}
+
+/// `x` with its sign (a typographic minus); a value that rounds to zero shows no sign.
+pub fn signed(x: f64, digits: usize) -> String {
+    let s = format!("{x:+.digits$}");
+    if s[1..].chars().all(|c| c == '0' || c == '.') {
+        s[1..].to_string()
+    } else {
+        s.replace('-', "−")
+    }
+}
+
+/// Sorted-copy median (the upper one for an even count); NaN when empty.
+pub fn median(v: &[f64]) -> f64 {
+    let mut v: Vec<f64> = v.iter().copied().filter(|x| x.is_finite()).collect();
+    if v.is_empty() {
+        return f64::NAN;
+    }
+    v.sort_by(f64::total_cmp);
+    v[v.len() / 2]
+}
+
+/// The medians the suite and the summary cards quote: 3-DOF centres, 1-DOF centres, axes.
+pub fn link_medians(v: &SubjectValidation) -> (f64, f64, f64) {
+    let dof = |e: &super::JointError| Joint::from_name(&e.joint).map(|j| j.dof());
+    let c3: Vec<f64> = v
+        .link
+        .joints
+        .iter()
+        .filter(|e| dof(e) == Some(3))
+        .map(|e| e.centre_mm)
+        .collect();
+    let c1: Vec<f64> = v
+        .link
+        .joints
+        .iter()
+        .filter(|e| dof(e) == Some(1))
+        .map(|e| e.centre_mm)
+        .collect();
+    let ax: Vec<f64> = v.link.joints.iter().filter_map(|e| e.axis_deg).collect();
+    (median(&c3), median(&c1), median(&ax))
+}
+
+/// Key figures (label, value, explanation) for the top of the report.
+pub fn key_figures(v: &SubjectValidation) -> Vec<(String, String, String)> {
+    let (c3, c1, ax) = link_medians(v);
+    let total: f64 = v.reconstruct_timings_s.values().sum();
+    let mut k = vec![
+        (
+            "skin → reference".into(),
+            format!("{:.2} mm", v.surface.mean_mm),
+            format!(
+                "mean distance; 95th percentile {:.2}, max {:.2} mm",
+                v.surface.p95_mm, v.surface.max_mm
+            ),
+        ),
+        (
+            "reference → skin".into(),
+            format!("{:.2} mm", v.surface_reverse.mean_mm),
+            format!("mean distance; max {:.2} mm", v.surface_reverse.max_mm),
+        ),
+        (
+            "joint centres".into(),
+            format!("{c3:.2} / {c1:.2} mm"),
+            "median error, 3-DOF / 1-DOF joints".into(),
+        ),
+        (
+            "hinge axes".into(),
+            format!("{ax:.2}°"),
+            "median angle to the true axis".into(),
+        ),
+        (
+            "dimensions".into(),
+            format!(
+                "{} ± {:.3} mm",
+                signed(v.dimensions.mean_vs_given_mm, 3),
+                v.dimensions.sd_vs_given_mm
+            ),
+            format!(
+                "{} caliper dimensions on the skin − given",
+                v.dimensions.dimensions.len()
+            ),
+        ),
+    ];
+    if total > 0.0 {
+        k.push((
+            "reconstruction".into(),
+            format!("{total:.1} s"),
+            "time of reconstruct's stages".into(),
+        ));
+    }
+    k
+}
+
+/// Distances both ways, with the seed paper's figures for comparison.
+pub fn surface_table(v: &SubjectValidation) -> Table {
+    let mut t = Table::new(
+        &[
+            "direction",
+            "points",
+            "mean",
+            "SD",
+            "min",
+            "95th percentile",
+            "max (mm)",
+        ],
+        &[false, true, true, true, true, true, true],
+    );
+    for (name, s) in [
+        ("skin.obj vertices → reference.ply", &v.surface),
+        ("reference.ply vertices → skin.obj", &v.surface_reverse),
+    ] {
+        t.rows.push(vec![
+            Cell::new(name),
+            Cell::new(s.n.to_string()),
+            Cell::new(f2(s.mean_mm)),
+            Cell::new(f2(s.sd_mm)),
+            Cell::new(format!("{:.4}", s.min_mm)),
+            Cell::new(f2(s.p95_mm)),
+            Cell::new(f2(s.max_mm)),
+        ]);
+    }
+    t.rows.push(vec![
+        Cell::new("seed paper, skin → CT of a plaster hand"),
+        Cell::new("–"),
+        Cell::new("1.63"),
+        Cell::new("1.42"),
+        Cell::new("0.0004"),
+        Cell::new("–"),
+        Cell::new("15.13"),
+    ]);
+    t.summary_rows = 1;
+    t.note = format!(
+        "Reference → skin measures every {}th of the reference's {} vertices (an even sample of the isosurface).",
+        v.reference_stride, v.reference_vertices
+    );
+    if v.reference_stride == 1 {
+        t.note = format!(
+            "Reference → skin measures all {} vertices of the reference.",
+            v.reference_vertices
+        );
+    }
+    t
+}
+
+/// Per joint: estimator, range of motion, centre and axis errors against the truth.
+pub fn joint_table(v: &SubjectValidation) -> Table {
+    let mut t = Table::new(
+        &[
+            "joint",
+            "DOF",
+            "estimator",
+            "trial",
+            "range of motion (°)",
+            "centre error (mm)",
+            "axis error (°)",
+        ],
+        &[false, true, false, false, true, true, true],
+    );
+    for e in &v.link.joints {
+        let fit = v.joint_fits.iter().find(|f| f.joint == e.joint);
+        t.rows.push(vec![
+            Cell::new(&e.joint),
+            Cell::new(fit.map(|f| f.dof.to_string()).unwrap_or_default()),
+            Cell::new(fit.map(|f| f.estimator.clone()).unwrap_or_default()),
+            Cell::new(fit.map(|f| f.trial.clone()).unwrap_or_default()),
+            Cell::new(
+                fit.map(|f| format!("{:.0}", f.range_of_motion_deg))
+                    .unwrap_or_default(),
+            ),
+            Cell::flagged(f2(e.centre_mm), e.centre_mm > FLAG_CENTRE_MM),
+            Cell::flagged(
+                e.axis_deg.map(f2).unwrap_or_else(|| "–".into()),
+                e.axis_deg.is_some_and(|a| a > FLAG_AXIS_DEG),
+            ),
+        ]);
+    }
+    let (c3, c1, ax) = link_medians(v);
+    t.rows.push(vec![
+        Cell::new("median"),
+        Cell::new(""),
+        Cell::new(""),
+        Cell::new(""),
+        Cell::new(""),
+        Cell::new(format!("3-DOF {c3:.2}, 1-DOF {c1:.2}")),
+        Cell::new(f2(ax)),
+    ]);
+    t.summary_rows = 1;
+    t.note = format!(
+        "Highlighted: centre errors above {FLAG_CENTRE_MM} mm, axis errors above {FLAG_AXIS_DEG}°. 1-DOF centres are the ones after section 3.6 (slid along the axis onto the skin's cross-section)."
+    );
+    t
+}
+
+/// The caliper dimensions measured on the skin against the given and the true values.
+pub fn dimension_table(v: &SubjectValidation) -> Table {
+    let mut t = Table::new(
+        &[
+            "dimension",
+            "on skin",
+            "given",
+            "true",
+            "skin − given",
+            "skin − true (mm)",
+        ],
+        &[false, true, true, true, true, true],
+    );
+    for d in &v.dimensions.dimensions {
+        let vs_given = d.skin_mm - d.given_mm;
+        t.rows.push(vec![
+            Cell::new(d.name.replace('_', " ")),
+            Cell::new(f2(d.skin_mm)),
+            Cell::new(f2(d.given_mm)),
+            Cell::new(d.true_mm.map(f2).unwrap_or_else(|| "–".into())),
+            Cell::flagged(signed(vs_given, 3), vs_given.abs() > FLAG_DIMENSION_MM),
+            Cell::flagged(
+                d.true_mm
+                    .map(|x| signed(d.skin_mm - x, 2))
+                    .unwrap_or_else(|| "–".into()),
+                d.true_mm
+                    .is_some_and(|x| (d.skin_mm - x).abs() > FLAG_DIMENSION_TRUE_MM),
+            ),
+        ]);
+    }
+    let (tm, ts) = v.dimensions.vs_true_mm.unwrap_or((f64::NAN, f64::NAN));
+    t.rows.push(vec![
+        Cell::new("mean ± SD"),
+        Cell::new(""),
+        Cell::new(""),
+        Cell::new(""),
+        Cell::new(format!(
+            "{} ± {:.3}",
+            signed(v.dimensions.mean_vs_given_mm, 3),
+            v.dimensions.sd_vs_given_mm
+        )),
+        Cell::new(format!("{} ± {:.2}", signed(tm, 2), ts)),
+    ]);
+    t.summary_rows = 1;
+    t.note = format!(
+        "The seed paper: 0.04 ± 0.13 mm against the given dimensions. Highlighted: differences above {FLAG_DIMENSION_MM} mm from the given, {FLAG_DIMENSION_TRUE_MM} mm from the true values. The given values are simulated caliper readings, so skin − true includes the caliper's own error."
+    );
+    t
+}
+
+/// Link lengths between consecutive joint centres, estimated and true.
+pub fn link_length_table(v: &SubjectValidation) -> Table {
+    let mut t = Table::new(
+        &["link", "estimated", "true", "difference (mm)"],
+        &[false, true, true, true],
+    );
+    // Digit order (thumb to little), proximal first, as the joints are numbered.
+    let mut links: Vec<(&String, &(f64, f64))> = v.link.link_lengths.iter().collect();
+    links.sort_by_key(|(k, _)| {
+        k.split('-')
+            .next()
+            .and_then(Joint::from_name)
+            .map_or(usize::MAX, |j| j.index())
+    });
+    for (k, (m, tr)) in links {
+        t.rows.push(vec![
+            Cell::new(k.replace('-', " – ")),
+            Cell::new(f2(*m)),
+            Cell::new(f2(*tr)),
+            Cell::flagged(signed(m - tr, 2), (m - tr).abs() > FLAG_CENTRE_MM),
+        ]);
+    }
+    t.note = "Repeatability (mean and SD over repeated sessions of one hand) needs repeats: ergohand validate --suite reports it for the suite's repeated subjects. The seed paper: index MCP–PIP 45.54 ± 0.52 mm, PIP–DIP 24.60 ± 0.92 mm over five sessions.".into();
+    t
+}
+
+/// Figure 9 in numbers: every child marker's distance to its joint centre.
+pub fn marker_radius_table(v: &SubjectValidation) -> Table {
+    let mut t = Table::new(
+        &["joint", "marker", "frames", "mean radius", "SD (mm)"],
+        &[false, false, true, true, true],
+    );
+    for f in &v.joint_fits {
+        for (k, m) in f.markers.iter().enumerate() {
+            t.rows.push(vec![
+                Cell::new(if k == 0 { f.joint.as_str() } else { "" }),
+                Cell::new(&m.marker),
+                Cell::new(m.frames.to_string()),
+                Cell::new(f2(m.mean_mm)),
+                Cell::new(format!("{:.3}", m.sd_mm)),
+            ]);
+        }
+    }
+    t.note = "Distances to the centre found from motion (for 1-DOF joints, before section 3.6 moved it along the axis). A rigid plate on an ideal joint gives SD 0; soft-tissue slide and noise raise it.".into();
+    t
+}
+
+/// Time per stage: `reconstruct`'s (from its `report.json`) and this report's.
+pub fn runtime_table(v: &SubjectValidation) -> Table {
+    let mut t = Table::new(&["command", "stage", "time (s)"], &[false, false, true]);
+    // Pipeline order; stages this report does not know come last, by name.
+    let order = ["link", "skin", "tet", "hand"];
+    let mut stages: Vec<(&String, &f64)> = v.reconstruct_timings_s.iter().collect();
+    stages.sort_by_key(|(k, _)| order.iter().position(|o| o == k).unwrap_or(order.len()));
+    for (k, s) in stages {
+        t.rows.push(vec![
+            Cell::new("reconstruct"),
+            Cell::new(k),
+            Cell::new(f2(*s)),
+        ]);
+    }
+    for (k, s) in &v.validate_timings_s {
+        t.rows
+            .push(vec![Cell::new("validate"), Cell::new(k), Cell::new(f2(*s))]);
+    }
+    let r: f64 = v.reconstruct_timings_s.values().sum();
+    let w: f64 = v.validate_timings_s.iter().map(|x| x.1).sum();
+    t.rows.push(vec![
+        Cell::new("total"),
+        Cell::new(format!("reconstruct {r:.2} s, validate {w:.2} s")),
+        Cell::new(f2(r + w)),
+    ]);
+    t.summary_rows = 1;
+    if v.reconstruct_timings_s.is_empty() {
+        t.note = "No report.json in the model folder: reconstruct's timings are unknown.".into();
+    }
+    t
+}

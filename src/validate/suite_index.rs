@@ -1,0 +1,370 @@
+//! `reports/index.html` of `ergohand validate --suite`: every suite subject in one table (key
+//! figures and a small error map, linked to the subject's own report), the suite's summary per
+//! preset, and the repeatability of the link lengths over repeated sessions of one hand.
+
+use super::report::SubjectValidation;
+use super::report_html::{esc, page, png_data_uri, table_html};
+use super::report_tables::{link_medians, signed, Cell, Table};
+use crate::synth::SynthOptions;
+use std::collections::BTreeMap;
+use std::path::{Component, Path, PathBuf};
+
+/// One subject of the suite.
+pub struct SuiteRow<'a> {
+    /// Its name in `suite.toml`.
+    pub name: String,
+    /// How it was simulated.
+    pub opts: SynthOptions,
+    /// What `validate` measured.
+    pub validation: &'a SubjectValidation,
+    /// Its `report.html`.
+    pub report: PathBuf,
+}
+
+/// Repeated sessions of one simulated hand: subjects whose options differ only in `repeat`.
+#[derive(Clone, Debug, PartialEq)]
+pub struct RepeatGroup {
+    /// The subjects, in suite order.
+    pub subjects: Vec<String>,
+    /// Link name -> (mean, sample SD, true length) over the sessions, mm.
+    pub links: BTreeMap<String, (f64, f64, f64)>,
+}
+
+/// The groups of [`RepeatGroup`] with at least two sessions.
+pub fn repeat_groups(rows: &[SuiteRow]) -> Vec<RepeatGroup> {
+    let mut groups: Vec<(SynthOptions, Vec<&SuiteRow>)> = Vec::new();
+    for r in rows {
+        let key = SynthOptions {
+            repeat: 0,
+            ..r.opts.clone()
+        };
+        match groups.iter_mut().find(|g| g.0 == key) {
+            Some(g) => g.1.push(r),
+            None => groups.push((key, vec![r])),
+        }
+    }
+    groups
+        .into_iter()
+        .filter(|g| g.1.len() >= 2)
+        .map(|(_, members)| {
+            let mut links = BTreeMap::new();
+            for k in members[0].validation.link.link_lengths.keys() {
+                let v: Vec<f64> = members
+                    .iter()
+                    .filter_map(|m| m.validation.link.link_lengths.get(k).map(|x| x.0))
+                    .collect();
+                let n = v.len() as f64;
+                let mean = v.iter().sum::<f64>() / n;
+                let sd = (v.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / (n - 1.0)).sqrt();
+                let truth = members[0].validation.link.link_lengths[k].1;
+                links.insert(k.clone(), (mean, sd, truth));
+            }
+            RepeatGroup {
+                subjects: members.iter().map(|m| m.name.clone()).collect(),
+                links,
+            }
+        })
+        .collect()
+}
+
+/// `to` relative to the folder `from` (both made absolute against the current folder), with
+/// forward slashes, for links between reports.
+pub fn relative_link(from: &Path, to: &Path) -> String {
+    let abs = |p: &Path| -> Vec<String> {
+        let p = if p.is_absolute() {
+            p.to_path_buf()
+        } else {
+            std::env::current_dir().unwrap_or_default().join(p)
+        };
+        let mut out: Vec<String> = Vec::new();
+        for c in p.components() {
+            match c {
+                Component::ParentDir => {
+                    out.pop();
+                }
+                Component::Normal(s) => out.push(s.to_string_lossy().into_owned()),
+                _ => {}
+            }
+        }
+        out
+    };
+    let (a, b) = (abs(from), abs(to));
+    let common = a.iter().zip(&b).take_while(|(x, y)| x == y).count();
+    let mut parts: Vec<String> = vec!["..".to_string(); a.len() - common];
+    parts.extend(b[common..].iter().cloned());
+    parts.join("/")
+}
+
+fn f2(x: f64) -> String {
+    if x.is_finite() {
+        format!("{x:.2}")
+    } else {
+        "–".into()
+    }
+}
+
+/// The index page; `dir` is where it is written (links are relative to it).
+pub fn suite_index_html(rows: &[SuiteRow], dir: &Path) -> String {
+    let mut b = String::new();
+    // Summary cards over the whole suite.
+    let n = rows.len().max(1) as f64;
+    let mean_of = |f: &dyn Fn(&SubjectValidation) -> f64| {
+        rows.iter().map(|r| f(r.validation)).sum::<f64>() / n
+    };
+    let max_of = |f: &dyn Fn(&SubjectValidation) -> f64| {
+        rows.iter().map(|r| f(r.validation)).fold(0.0, f64::max)
+    };
+    let cards = [
+        (
+            "subjects",
+            rows.len().to_string(),
+            "simulated hands with ground truth".to_string(),
+        ),
+        (
+            "skin → reference",
+            format!("{:.2} mm", mean_of(&|v| v.surface.mean_mm)),
+            format!(
+                "mean of the means; worst max {:.2} mm",
+                max_of(&|v| v.surface.max_mm)
+            ),
+        ),
+        (
+            "3-DOF centres",
+            format!("{:.2} mm", mean_of(&|v| link_medians(v).0)),
+            "mean of the subjects' medians".into(),
+        ),
+        (
+            "1-DOF centres",
+            format!("{:.2} mm", mean_of(&|v| link_medians(v).1)),
+            "mean of the subjects' medians".into(),
+        ),
+        (
+            "hinge axes",
+            format!("{:.2}°", mean_of(&|v| link_medians(v).2)),
+            "mean of the subjects' medians".into(),
+        ),
+        (
+            "reconstruct",
+            format!(
+                "{:.1} s",
+                mean_of(&|v| v.reconstruct_timings_s.values().sum::<f64>())
+            ),
+            "mean time per subject".into(),
+        ),
+    ];
+    b.push_str("<div class=\"cards\">");
+    for (l, v, note) in cards {
+        b.push_str(&format!(
+            "<div class=\"card\"><div class=\"l\">{}</div><div class=\"v\">{}</div><div class=\"n\">{}</div></div>",
+            esc(l),
+            esc(&v),
+            esc(&note)
+        ));
+    }
+    b.push_str("</div>\n");
+
+    b.push_str("<section id=\"subjects\"><h2>Every subject</h2><p class=\"lead\">Each row links to the subject's full report (written under <code>validation/subjects/</code>, which is not committed: run the suite to get them). The picture is the subject's error map (dorsal and palmar views), coloured from 0 to the scale top in the next column.</p>");
+    b.push_str("<div class=\"scroll\"><table class=\"suite\"><thead><tr><th>subject</th><th>error map</th><th class=\"num\">scale top (mm)</th><th class=\"num\">skin → ref. mean / max (mm)</th><th class=\"num\">ref. → skin mean / max (mm)</th><th class=\"num\">median centre error 3-DOF / 1-DOF (mm)</th><th class=\"num\">median axis error (°)</th><th class=\"num\">dimensions skin − given (mm)</th><th class=\"num\">time reconstruct / validate (s)</th></tr></thead><tbody>\n");
+    for r in rows {
+        let v = r.validation;
+        let (c3, c1, ax) = link_medians(v);
+        let link = relative_link(dir, &r.report);
+        let rec: f64 = v.reconstruct_timings_s.values().sum();
+        let val: f64 = v.validate_timings_s.iter().map(|x| x.1).sum();
+        b.push_str(&format!(
+            "<tr><td><a href=\"{}\"><b>{}</b></a><br><span class=\"n\">{} · {} hand · {} posture{}</span></td><td><img class=\"thumb\" src=\"{}\" alt=\"error map of {}\"></td><td class=\"num\">{:.1}</td><td class=\"num\">{} / {}</td><td class=\"num\">{} / {}</td><td class=\"num\">{} / {}</td><td class=\"num\">{}</td><td class=\"num\">{} ± {:.3}</td><td class=\"num\">{:.1} / {:.1}</td></tr>\n",
+            esc(&link),
+            esc(&r.name),
+            r.opts.preset.name(),
+            r.opts.hand,
+            format!("{:?}", r.opts.posture).to_lowercase(),
+            if r.opts.repeat > 0 { format!(" · session {}", r.opts.repeat + 1) } else { String::new() },
+            png_data_uri(&v.thumbnail_png),
+            esc(&r.name),
+            v.colour_scale_top_mm,
+            f2(v.surface.mean_mm),
+            f2(v.surface.max_mm),
+            f2(v.surface_reverse.mean_mm),
+            f2(v.surface_reverse.max_mm),
+            f2(c3),
+            f2(c1),
+            f2(ax),
+            signed(v.dimensions.mean_vs_given_mm, 3),
+            v.dimensions.sd_vs_given_mm,
+            rec,
+            val
+        ));
+    }
+    b.push_str("</tbody></table></div></section>\n");
+
+    // Per preset.
+    let mut presets: Vec<&str> = Vec::new();
+    for r in rows {
+        if !presets.contains(&r.opts.preset.name()) {
+            presets.push(r.opts.preset.name());
+        }
+    }
+    let mut t = Table {
+        head: [
+            "preset",
+            "subjects",
+            "skin → ref. mean (mm)",
+            "skin → ref. max (mm)",
+            "3-DOF centre (mm)",
+            "1-DOF centre (mm)",
+            "axis (°)",
+        ]
+        .iter()
+        .map(|s| s.to_string())
+        .collect(),
+        rows: Vec::new(),
+        numeric: vec![false, true, true, true, true, true, true],
+        summary_rows: 1,
+        note: "Means over the preset's subjects of each subject's mean (surface) or median (joints); max is the largest of the subjects' maxima. The seed paper: 1.63 mm mean, 15.13 mm max on a real hand.".into(),
+    };
+    let group_row = |label: &str, g: &[&SuiteRow]| -> Vec<Cell> {
+        let k = g.len().max(1) as f64;
+        let m = |f: &dyn Fn(&SubjectValidation) -> f64| {
+            g.iter().map(|r| f(r.validation)).sum::<f64>() / k
+        };
+        vec![
+            Cell {
+                text: label.to_string(),
+                flag: false,
+            },
+            Cell {
+                text: g.len().to_string(),
+                flag: false,
+            },
+            Cell {
+                text: f2(m(&|v| v.surface.mean_mm)),
+                flag: false,
+            },
+            Cell {
+                text: f2(g
+                    .iter()
+                    .map(|r| r.validation.surface.max_mm)
+                    .fold(0.0, f64::max)),
+                flag: false,
+            },
+            Cell {
+                text: f2(m(&|v| link_medians(v).0)),
+                flag: false,
+            },
+            Cell {
+                text: f2(m(&|v| link_medians(v).1)),
+                flag: false,
+            },
+            Cell {
+                text: f2(m(&|v| link_medians(v).2)),
+                flag: false,
+            },
+        ]
+    };
+    for p in &presets {
+        let g: Vec<&SuiteRow> = rows.iter().filter(|r| r.opts.preset.name() == *p).collect();
+        t.rows.push(group_row(p, &g));
+    }
+    let all: Vec<&SuiteRow> = rows.iter().collect();
+    t.rows.push(group_row("all", &all));
+    b.push_str("<section id=\"summary\"><h2>Summary per preset</h2>");
+    b.push_str(&table_html(&t));
+    b.push_str("</section>\n");
+
+    // Repeatability.
+    b.push_str("<section id=\"repeatability\"><h2>Repeatability of the link lengths</h2>");
+    let groups = repeat_groups(rows);
+    if groups.is_empty() {
+        b.push_str("<p>The suite has no repeated sessions of one hand (subjects whose options differ only in <code>repeat</code>).</p>");
+    }
+    for g in &groups {
+        b.push_str(&format!(
+            "<p class=\"lead\">{} sessions of one simulated hand ({}): new plates, noise, soft-tissue slide and gaps each time. The seed paper, five sessions of a real index finger: MCP–PIP 45.54 ± 0.52 mm, PIP–DIP 24.60 ± 0.92 mm.</p>",
+            g.subjects.len(),
+            esc(&g.subjects.join(", "))
+        ));
+        let mut t = Table {
+            head: ["link", "mean", "SD", "true", "mean − true (mm)"]
+                .iter()
+                .map(|s| s.to_string())
+                .collect(),
+            rows: Vec::new(),
+            numeric: vec![false, true, true, true, true],
+            summary_rows: 0,
+            note: "SD over the sessions (n − 1).".into(),
+        };
+        // Digit order (thumb to little), proximal first.
+        let mut links: Vec<(&String, &(f64, f64, f64))> = g.links.iter().collect();
+        links.sort_by_key(|(k, _)| {
+            k.split('-')
+                .next()
+                .and_then(crate::anatomy::Joint::from_name)
+                .map_or(usize::MAX, |j| j.index())
+        });
+        for (k, (m, sd, tr)) in links {
+            t.rows.push(
+                [
+                    k.replace('-', " – "),
+                    f2(*m),
+                    f2(*sd),
+                    f2(*tr),
+                    signed(m - tr, 2),
+                ]
+                .into_iter()
+                .map(|text| Cell { text, flag: false })
+                .collect(),
+            );
+        }
+        b.push_str(&table_html(&t));
+    }
+    b.push_str("</section>\n");
+    let header = "<h1>Validation suite</h1><p>Every simulated subject of <code>validation/suite.toml</code>, reconstructed by <code>ergohand reconstruct</code> and measured by <code>ergohand validate</code> against its truth. Made by <code>ergohand validate --suite validation/</code>.</p><nav><a href=\"#subjects\">Subjects</a><a href=\"#summary\">Summary</a><a href=\"#repeatability\">Repeatability</a><a href=\"link-accuracy.md\">link-accuracy.md</a></nav>";
+    page("ergohand validation suite", header, &b).replace(
+        "</style>",
+        "img.thumb{width:190px;height:auto;border:0}table.suite td{vertical-align:middle}table.suite th{white-space:normal;vertical-align:bottom}.n{color:var(--muted);font-size:12px}</style>",
+    )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The shipped suite holds repeated sessions of one hand, which `repeat_groups` joins by
+    /// their options without `repeat`.
+    #[test]
+    fn shipped_suite_has_a_repeatability_group() {
+        let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("validation/suite.toml");
+        let suite = crate::synth::suite::read_suite(&path).unwrap();
+        let key = |o: &SynthOptions| SynthOptions {
+            repeat: 0,
+            ..o.clone()
+        };
+        let biggest = suite
+            .iter()
+            .map(|(_, o)| suite.iter().filter(|(_, p)| key(p) == key(o)).count())
+            .max()
+            .unwrap();
+        assert!(biggest >= 5, "{biggest}");
+        let sessions: Vec<u32> = suite
+            .iter()
+            .filter(|(n, _)| n.starts_with("typical-r1"))
+            .map(|(_, o)| o.repeat)
+            .collect();
+        assert_eq!(sessions, vec![0, 1, 2, 3, 4]);
+    }
+
+    #[test]
+    fn relative_links_between_folders() {
+        assert_eq!(
+            relative_link(
+                Path::new("/a/reports"),
+                Path::new("/a/validation/subjects/x/out/report/report.html")
+            ),
+            "../validation/subjects/x/out/report/report.html"
+        );
+        assert_eq!(
+            relative_link(Path::new("/a/b/../r"), Path::new("/a/r/x.html")),
+            "x.html"
+        );
+    }
+}
