@@ -11,6 +11,7 @@
 //! joint proximal to it in the digit, while the joints distal to it keep closing. Joints that
 //! reach their closed posture with their link never touching are reported.
 
+use super::collide::{has_core, Cores};
 use super::contact::{ContactOptions, PartShape};
 use super::hand::PosableHand;
 use super::scene::GraspType;
@@ -18,6 +19,7 @@ use crate::anatomy::{Finger, Joint, Link};
 use crate::error::{Error, Result};
 use crate::geometry::{Point, Vec3};
 use crate::rng::Rng;
+use crate::skeleton::forward_kinematics::link_transforms;
 use crate::skeleton::limits::joint_limits_deg;
 use crate::skeleton::Pose;
 use nalgebra::{Isometry3, Rotation3, Translation3, UnitQuaternion};
@@ -31,6 +33,11 @@ pub struct GraspPlan {
     pub closed: [[f64; 3]; 16],
     /// Joints that close.
     pub active: [bool; 16],
+    /// Closing order within a digit: `true` wraps (only the most proximal joint still moving
+    /// advances, so the proximal phalanx meets the part first and the finger curls onto it,
+    /// as in a power grasp); `false` closes the digit's joints together (the fingertip leads,
+    /// as in precision grasps).
+    pub wrap: bool,
 }
 
 /// The plan of a grasp type (degrees chosen within the anatomical limits; the wrist stays put).
@@ -105,6 +112,7 @@ pub fn grasp_plan(kind: GraspType) -> GraspPlan {
         preshape: clamp(pre),
         closed: clamp(closed),
         active,
+        wrap: kind == GraspType::Power,
     }
 }
 
@@ -155,6 +163,9 @@ pub struct AutograspOptions {
     pub contact: ContactOptions,
     /// Use every `stride`-th skin vertex for the closing checks (1 = all).
     pub stride: usize,
+    /// How much further (mm) a closing phalanx may enter another finger's core than it was
+    /// at the start of its closing (skin is soft, the cores are conservative).
+    pub finger_allowance_mm: f64,
 }
 
 impl Default for AutograspOptions {
@@ -165,6 +176,7 @@ impl Default for AutograspOptions {
             max_depth_mm: 0.8,
             contact: ContactOptions::default(),
             stride: 1,
+            finger_allowance_mm: 1.0,
         }
     }
 }
@@ -178,6 +190,8 @@ pub struct Autograsp {
     pub t: [f64; 16],
     /// Active joints whose link never touched the part (by name).
     pub untouched: Vec<String>,
+    /// Links stopped by another finger before touching the part.
+    pub collisions: Vec<FingerCollision>,
     /// Posture evaluations made.
     pub evaluations: usize,
 }
@@ -211,30 +225,77 @@ fn digit_links(f: Finger) -> [Link; 3] {
     [j[0].child_link(), j[1].child_link(), j[2].child_link()]
 }
 
-/// Deepest penetration (mm, positive inside) and whether it touches, per link, of the vertices in `which`.
+/// Per link: deepest penetration (mm, positive inside; `f64::MIN` when nothing is near),
+/// whether it touches (within the tolerance or inside), and its deepest vertex.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct LinkState {
+    depth: f64,
+    touches: bool,
+}
+
+/// The state of `link` posed by `t` (its vertices written into `buf`); vertices the broad
+/// phase puts deep inside count as `search` deep.
 fn link_state(
+    hand: &dyn PosableHand,
     part: &PartShape,
-    pts: &[Point],
-    links: &[usize],
-    which: &[usize],
-    tol: f64,
-    search: f64,
-) -> Vec<(f64, bool)> {
-    let mut out = vec![(f64::MIN, false); Link::ALL.len()];
-    for &i in which {
-        if let Some((d, _, _)) = part.query(&pts[i], search) {
-            let l = links[i];
-            out[l].0 = out[l].0.max(-d);
-            if d <= tol {
-                out[l].1 = true;
+    link: usize,
+    t: &[Isometry3<f64>],
+    opts: &AutograspOptions,
+    buf: &mut Vec<Point>,
+) -> LinkState {
+    use super::contact::Probe;
+    hand.pose_link(link, t, buf);
+    let mut s = LinkState {
+        depth: f64::MIN,
+        touches: false,
+    };
+    if buf.is_empty() || !link_near(part, buf, opts.contact.search_mm) {
+        return s;
+    }
+    let stride = opts.stride.max(1);
+    for p in buf.iter().step_by(stride) {
+        match part.probe(p, opts.contact.search_mm) {
+            Probe::Far => {}
+            Probe::Deep => {
+                s.depth = s.depth.max(opts.contact.search_mm);
+                s.touches = true;
+            }
+            Probe::Hit(d, _, _) => {
+                s.depth = s.depth.max(-d);
+                if d <= opts.contact.tolerance_mm {
+                    s.touches = true;
+                }
             }
         }
     }
-    out
+    s
 }
 
-/// GraspIt autograsp from `root` (see the module documentation). Errors when the hand
-/// starts inside the part (naming the deepest link).
+/// Whether the bounding box of `pts` grown by `r` meets the part's.
+fn link_near(part: &PartShape, pts: &[Point], r: f64) -> bool {
+    let (mut lo, mut hi) = (pts[0], pts[0]);
+    for p in pts {
+        lo = lo.inf(p);
+        hi = hi.sup(p);
+    }
+    (0..3).all(|a| lo[a] - r <= part.hi[a] && hi[a] + r >= part.lo[a])
+}
+
+/// A finger stopped by another finger during [`autograsp`].
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct FingerCollision {
+    /// The closing link that would have entered another finger.
+    pub link: String,
+    /// The link of the other finger.
+    pub other: String,
+}
+
+/// GraspIt autograsp from `root` (see the module documentation), with finger-finger
+/// collisions: a closing step that would push a phalanx's skin more than
+/// [`AutograspOptions::finger_allowance_mm`] further into another finger's core
+/// ([`Cores`]) than at the start of its closing is refused like a step into the part, and
+/// the link stops there. Errors when the hand starts inside the part (naming the deepest
+/// link).
 pub fn autograsp(
     hand: &dyn PosableHand,
     part: &PartShape,
@@ -242,45 +303,42 @@ pub fn autograsp(
     root: Isometry3<f64>,
     opts: &AutograspOptions,
 ) -> Result<Autograsp> {
-    let links = hand.vertex_link();
-    let n = links.len();
-    let stride = opts.stride.max(1);
+    let sk = hand.skeleton();
+    let cores = Cores::new(hand);
     let mut t = [0.0; 16];
-    let mut pts = Vec::with_capacity(n);
+    let mut buf = Vec::new();
     let mut evaluations = 1;
-    hand.pose_vertices(&pose_at(plan, &t, root), &mut pts);
-    let all: Vec<usize> = (0..n).step_by(stride).collect();
-    let start = link_state(
-        part,
-        &pts,
-        links,
-        &all,
-        opts.contact.tolerance_mm,
-        opts.contact.search_mm,
-    );
-    if let Some((l, (d, _))) = start
-        .iter()
-        .enumerate()
-        .filter(|(_, s)| s.0 > 2.0)
-        .max_by(|a, b| a.1 .0.total_cmp(&b.1 .0))
-    {
+    let tr = link_transforms(sk, &pose_at(plan, &t, root));
+    let mut touched = [false; 17];
+    let mut worst: Option<(usize, f64)> = None;
+    for (l, slot) in touched.iter_mut().enumerate() {
+        let s = link_state(hand, part, l, &tr, opts, &mut buf);
+        *slot = s.touches;
+        if s.depth > 2.0 && worst.is_none_or(|w| s.depth > w.1) {
+            worst = Some((l, s.depth));
+        }
+    }
+    if let Some((l, d)) = worst {
+        // The broad phase only bounds deep points: measure the deepest exactly for the message.
+        hand.pose_link(l, &tr, &mut buf);
+        let exact = buf
+            .iter()
+            .filter(|p| part.probe(p, opts.contact.search_mm) == super::contact::Probe::Deep)
+            .map(|p| part.distance(p))
+            .fold(d, f64::max);
         return Err(Error::invalid(format!(
-            "the hand starts inside the part: link {} is {d:.1} mm deep at the approach; move the approach away from the part",
+            "grasp.approach: the hand starts inside the part: link {} is {exact:.1} mm deep at the approach; move the approach away from the part",
             Link::ALL[l].name()
         )));
     }
-    let mut touched = [false; 17];
-    for (l, s) in start.iter().enumerate() {
-        touched[l] = s.1;
-    }
+    let mut collisions = Vec::new();
     for f in Finger::ALL {
         let joints = f.joints();
         let dl = digit_links(f);
-        let which: Vec<usize> = (0..n)
-            .step_by(stride)
-            .filter(|&i| dl.iter().any(|l| l.index() == links[i]))
-            .collect();
         let mut moving: Vec<bool> = joints.iter().map(|j| plan.active[j.index()]).collect();
+        if !moving.iter().any(|&m| m) {
+            continue;
+        }
         // A link touching already in the preshape stops its chain.
         for k in 0..3 {
             if touched[dl[k].index()] {
@@ -289,45 +347,82 @@ pub fn autograsp(
                 }
             }
         }
+        // Finger-finger baseline: how far each phalanx is inside other fingers' cores now.
+        let tr = link_transforms(sk, &pose_at(plan, &t, root));
+        let posed_cores = cores.posed(&tr);
+        let mut baseline = [0.0; 3];
+        for k in 0..3 {
+            if has_core(dl[k]) {
+                hand.pose_link(dl[k].index(), &tr, &mut buf);
+                baseline[k] = cores.penetration(&posed_cores, f, &buf).0;
+            }
+        }
+        let mut depth: [f64; 3] = std::array::from_fn(|k| {
+            link_state(hand, part, dl[k].index(), &tr, opts, &mut buf).depth
+        });
         let mut dt = opts.step;
         let mut guard = 0;
         while moving.iter().any(|&m| m) && guard < 10_000 {
             guard += 1;
             let mut t2 = t;
+            let lead = moving.iter().position(|&m| m).unwrap_or(0);
             for k in 0..3 {
-                if moving[k] {
+                if moving[k] && (!plan.wrap || k == lead) {
                     t2[joints[k].index()] = (t[joints[k].index()] + dt).min(1.0);
                 }
             }
-            hand.pose_vertices(&pose_at(plan, &t2, root), &mut pts);
+            let tr = link_transforms(sk, &pose_at(plan, &t2, root));
             evaluations += 1;
-            let st = link_state(
-                part,
-                &pts,
-                links,
-                &which,
-                opts.contact.tolerance_mm,
-                opts.contact.search_mm,
-            );
-            let deepest = (0..3)
-                .filter(|&k| st[dl[k].index()].0 > opts.max_depth_mm)
-                .max();
-            if let Some(k) = deepest {
+            let posed_cores = cores.posed(&tr);
+            let mut st = [LinkState {
+                depth: f64::MIN,
+                touches: false,
+            }; 3];
+            let mut blocked: Option<(usize, Option<usize>)> = None;
+            for k in 0..3 {
+                st[k] = link_state(hand, part, dl[k].index(), &tr, opts, &mut buf);
+                // Only a step that takes the link deeper than allowed, and deeper than it
+                // already was (the approach may press the thenar in), is refused.
+                if st[k].depth > opts.max_depth_mm.max(depth[k] + 1e-6) {
+                    blocked = Some((k, None));
+                }
+                if has_core(dl[k]) && !buf.is_empty() {
+                    let (d, other) = cores.penetration(&posed_cores, f, &buf);
+                    if d > baseline[k] + opts.finger_allowance_mm {
+                        blocked = Some((k, other));
+                    }
+                }
+            }
+            if let Some((k, other)) = blocked {
                 if dt > opts.min_step {
                     dt *= 0.5;
                     continue;
                 }
                 // Cannot get closer without passing through: the chain up to k stops here.
-                for m in moving.iter_mut().take(k + 1) {
+                // When k is already still, the skin it dominates is pushed by the blend of the
+                // distal joints still moving: the next of them stops too.
+                let last = if moving[..=k].iter().any(|&m| m) {
+                    k
+                } else {
+                    (k + 1..3).find(|&m| moving[m]).unwrap_or(2)
+                };
+                for m in moving.iter_mut().take(last + 1) {
                     *m = false;
                 }
-                touched[dl[k].index()] = true;
+                match other {
+                    None => touched[dl[k].index()] = true,
+                    Some(o) => collisions.push(FingerCollision {
+                        link: dl[k].name().to_string(),
+                        other: Link::ALL[o].name().to_string(),
+                    }),
+                }
                 dt = opts.step;
                 continue;
             }
             t = t2;
             for k in 0..3 {
-                if st[dl[k].index()].1 {
+                depth[k] = st[k].depth;
+                if st[k].touches {
                     touched[dl[k].index()] = true;
                     for m in moving.iter_mut().take(k + 1) {
                         *m = false;
@@ -351,6 +446,7 @@ pub fn autograsp(
         pose: pose_at(plan, &t, root),
         t,
         untouched,
+        collisions,
         evaluations,
     })
 }
@@ -428,7 +524,9 @@ pub fn placement_search(
         step: 0.1,
         min_step: 0.05,
         max_depth_mm: 2.0,
-        stride: 7,
+        // Every vertex: a thinned check would accept placements whose final autograsp finds
+        // the hand starting inside the part (the broad phase makes full checks cheap).
+        stride: 1,
         ..AutograspOptions::default()
     };
     let bar = if quiet {

@@ -2,19 +2,22 @@
 //!
 //! The part is a parry [`parry3d_f64::shape::TriMesh`] with its BVH and, when it is a closed
 //! oriented 2-manifold, angle-weighted pseudo-normals (Bærentzen & Aanæs 2005), which make the
-//! projection of a point tell inside from outside. Every skin vertex is projected on the part
-//! (bounded by a search radius, so vertices far away cost one AABB test); a vertex is in contact
+//! projection of a point tell inside from outside; both are built once per part. A voxel broad
+//! phase ([`super::broad::NearGrid`]) answers most skin vertices without a query: only those
+//! that may lie within [`GRID_BAND_MM`] of the surface are projected on the part (bounded by
+//! the search radius), the rest are known to be outside (or deep inside). A vertex is in contact
 //! when it lies within `tolerance_mm` of the surface or inside the part. Its share of the skin
 //! area (one third of each incident face, on the rest mesh) is its contact area. Per link the
 //! contact vertices are summarised into a few contact patches (farthest-point seeds, nearest-seed
 //! assignment) with the area-weighted mean point on the part, the mean inward normal and the
 //! deepest penetration: the point contacts the grasp quality uses.
 
+use super::broad::{NearGrid, Zone};
 use crate::anatomy::{Finger, Link};
 use crate::error::{Error, Result};
 use crate::geometry::{Point, TriMesh, Vec3};
 use parry3d_f64::math::Vector as PVec;
-use parry3d_f64::query::PointQueryWithLocation;
+use parry3d_f64::query::{PointQuery, PointQueryWithLocation};
 use parry3d_f64::shape::{TriMesh as PTriMesh, TriMeshFlags};
 use rayon::prelude::*;
 use serde::Serialize;
@@ -38,6 +41,23 @@ pub struct PartShape {
     pub lo: Point,
     /// Axis-aligned bounds.
     pub hi: Point,
+    /// Broad phase.
+    pub grid: NearGrid,
+}
+
+/// Band of the broad phase, mm: queries with a search radius up to this skip the exact
+/// projection of every point the grid puts outside the band.
+pub const GRID_BAND_MM: f64 = 3.0;
+
+/// A point against the part, from [`PartShape::probe`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Probe {
+    /// Outside and farther than the search radius.
+    Far,
+    /// Inside the closed part, deeper than the search radius.
+    Deep,
+    /// Within the search radius: signed distance (negative inside), projection, face normal.
+    Hit(f64, Point, Vec3),
 }
 
 pub(crate) fn pv(p: &Point) -> PVec {
@@ -108,12 +128,15 @@ impl PartShape {
             .map(|v| (v - com).norm())
             .fold(0.0, f64::max);
         let (lo, hi) = mesh.bounds().expect("non-empty");
-        let diag = (hi - lo).norm();
+        let size = hi - lo;
+        let diag = size.norm();
         if !(10.0..=2000.0).contains(&diag) {
             warnings.push(format!(
-                "part: its bounding box diagonal is {diag:.3} mm; a hand-held part is 10 to 2000 mm: check part.units"
+                "part: its size is {:.4} x {:.4} x {:.4} mm (diagonal {diag:.4} mm) but a hand-held part is 10 to 2000 mm across: check part.units",
+                size.x, size.y, size.z
             ));
         }
+        let grid = NearGrid::new(&mesh, GRID_BAND_MM, closed);
         Ok((
             PartShape {
                 face_normals: mesh.face_normals(),
@@ -124,6 +147,7 @@ impl PartShape {
                 max_radius,
                 lo,
                 hi,
+                grid,
             },
             warnings,
         ))
@@ -133,6 +157,43 @@ impl PartShape {
     /// or `None` when the surface is further than `max_dist` (inside deeper than `max_dist`
     /// is also `None`).
     pub fn query(&self, p: &Point, max_dist: f64) -> Option<(f64, Point, Vec3)> {
+        match self.probe(p, max_dist) {
+            Probe::Hit(d, q, n) => Some((d, q, n)),
+            _ => None,
+        }
+    }
+
+    /// Where `p` is relative to the part within `max_dist` (see [`Probe`]); the broad phase
+    /// answers when `max_dist` is within its band.
+    #[inline]
+    pub fn probe(&self, p: &Point, max_dist: f64) -> Probe {
+        if max_dist <= self.grid.band {
+            match self.grid.zone(p) {
+                Zone::Outside => return Probe::Far,
+                Zone::Inside => return Probe::Deep,
+                Zone::Near => {}
+            }
+        }
+        match self.exact(p, max_dist) {
+            Some((d, q, n)) => Probe::Hit(d, q, n),
+            None if !self.closed => Probe::Far,
+            None => match self.grid.zone(p) {
+                Zone::Outside => Probe::Far,
+                Zone::Inside => Probe::Deep,
+                // Beyond the search radius, on a side only parry can tell.
+                Zone::Near if self.shape.contains_local_point(pv(p)) => Probe::Deep,
+                Zone::Near => Probe::Far,
+            },
+        }
+    }
+
+    /// Unsigned distance to the surface with no bound (for messages about deep points).
+    pub fn distance(&self, p: &Point) -> f64 {
+        let proj = self.shape.project_local_point(pv(p), false);
+        (np(proj.point) - p).norm()
+    }
+
+    fn exact(&self, p: &Point, max_dist: f64) -> Option<(f64, Point, Vec3)> {
         for a in 0..3 {
             if p[a] < self.lo[a] - max_dist || p[a] > self.hi[a] + max_dist {
                 return None;
@@ -154,8 +215,8 @@ impl PartShape {
 pub struct ContactOptions {
     /// A skin vertex within this distance of the part counts as touching, mm.
     pub tolerance_mm: f64,
-    /// Deepest penetration searched, mm: vertices deeper inside are not seen (the autograsp
-    /// never lets the skin go that deep).
+    /// Search radius, mm: vertices deeper inside are not measured (the autograsp never lets
+    /// the skin go that deep); up to [`GRID_BAND_MM`] the broad phase skips far vertices.
     pub search_mm: f64,
     /// At most this many contact patches per link.
     pub patches_per_link: usize,
@@ -165,7 +226,7 @@ impl Default for ContactOptions {
     fn default() -> Self {
         ContactOptions {
             tolerance_mm: 1.0,
-            search_mm: 10.0,
+            search_mm: GRID_BAND_MM,
             patches_per_link: 4,
         }
     }

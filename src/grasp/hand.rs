@@ -1,14 +1,21 @@
 //! The hand that grasps: anything that can pose its skin for a [`Pose`].
 //!
-//! The grasp stage needs only the skeleton (for forward kinematics and limits), the rest mesh,
-//! each vertex's dominant link (to split the skin into rigid-ish links for contacts per link and
-//! colliders per link) and a way to pose the skin. [`RigidHand`] poses rigidly: every vertex
-//! moves with its dominant link ([`link_transforms`]); the integrator implements
-//! [`PosableHand`] for the skinned individual hand (issue 7).
+//! The grasp stage needs the skeleton (for forward kinematics and limits), the rest mesh, each
+//! vertex's dominant link (to split the skin into links for contacts per link and colliders per
+//! link) and a way to pose the skin, whole or one link's vertices at a time (the autograsp
+//! moves one digit per step and poses only its links).
+//!
+//! * [`SkinnedHand`]: the individual hand of the pose stage ([`crate::pose::IndividualHand`]),
+//!   deformed by linear blend skinning through [`crate::pose::SkinBinding`] (the pose stage's
+//!   fast path), so contacts are measured on the skin as it bends at the joints. The default
+//!   hand is the template as an individual hand ([`SkinnedHand::template`]).
+//! * [`RigidHand`]: every vertex follows its dominant link rigidly (a simpler reference, used by
+//!   tests that need a hand without blending).
 
 use crate::anatomy::{Link, Side};
 use crate::error::Result;
 use crate::geometry::{Point, TriMesh};
+use crate::pose::{IndividualHand, SkinBinding, WeightMethod};
 use crate::skeleton::forward_kinematics::link_transforms;
 use crate::skeleton::{Pose, Skeleton};
 use crate::template::{dominant_links, load_template};
@@ -22,8 +29,28 @@ pub trait PosableHand: Sync {
     fn rest_mesh(&self) -> &TriMesh;
     /// Per rest vertex, the [`Link::index`] that dominates its weights.
     fn vertex_link(&self) -> &[usize];
+    /// Per [`Link::index`], the rest vertices it dominates (ascending).
+    fn link_vertices(&self) -> &[Vec<usize>];
+    /// The whole posed skin for link transforms
+    /// ([`crate::skeleton::forward_kinematics::link_transforms`]), in rest vertex order.
+    fn pose_all(&self, transforms: &[Isometry3<f64>], out: &mut Vec<Point>);
+    /// The posed vertices of one link, in the order of [`PosableHand::link_vertices`]; the
+    /// same positions [`PosableHand::pose_all`] gives them.
+    fn pose_link(&self, link: usize, transforms: &[Isometry3<f64>], out: &mut Vec<Point>);
     /// Write the posed skin vertices (same order as [`PosableHand::rest_mesh`]) into `out`.
-    fn pose_vertices(&self, pose: &Pose, out: &mut Vec<Point>);
+    fn pose_vertices(&self, pose: &Pose, out: &mut Vec<Point>) {
+        let t = link_transforms(self.skeleton(), pose);
+        self.pose_all(&t, out);
+    }
+}
+
+/// Rest vertices grouped by dominant link.
+fn group_by_link(links: &[usize]) -> Vec<Vec<usize>> {
+    let mut by = vec![Vec::new(); Link::ALL.len()];
+    for (i, &l) in links.iter().enumerate() {
+        by[l].push(i);
+    }
+    by
 }
 
 /// Rigid posing: each vertex follows its dominant link.
@@ -35,17 +62,14 @@ pub struct RigidHand {
     pub mesh: TriMesh,
     /// Dominant link per vertex.
     pub links: Vec<usize>,
+    by_link: Vec<Vec<usize>>,
 }
 
 impl RigidHand {
-    /// The default hand: the template of `side`, posed rigidly.
+    /// The template of `side`, posed rigidly.
     pub fn template(side: Side) -> Result<RigidHand> {
         let t = load_template(side)?;
-        Ok(RigidHand {
-            links: dominant_links(&t.weights),
-            skeleton: t.skeleton,
-            mesh: t.mesh,
-        })
+        RigidHand::new(t.skeleton, t.mesh, dominant_links(&t.weights))
     }
 
     /// A hand from its parts; `links` must have one valid link index per vertex.
@@ -58,6 +82,7 @@ impl RigidHand {
             )));
         }
         Ok(RigidHand {
+            by_link: group_by_link(&links),
             skeleton,
             mesh,
             links,
@@ -86,8 +111,142 @@ impl PosableHand for RigidHand {
     fn vertex_link(&self) -> &[usize] {
         &self.links
     }
-    fn pose_vertices(&self, pose: &Pose, out: &mut Vec<Point>) {
-        let t = link_transforms(&self.skeleton, pose);
-        pose_rigid(&self.mesh.vertices, &self.links, &t, out);
+    fn link_vertices(&self) -> &[Vec<usize>] {
+        &self.by_link
+    }
+    fn pose_all(&self, transforms: &[Isometry3<f64>], out: &mut Vec<Point>) {
+        pose_rigid(&self.mesh.vertices, &self.links, transforms, out);
+    }
+    fn pose_link(&self, link: usize, transforms: &[Isometry3<f64>], out: &mut Vec<Point>) {
+        let t = transforms[link];
+        out.clear();
+        out.extend(
+            self.by_link[link]
+                .iter()
+                .map(|&i| t * self.mesh.vertices[i]),
+        );
+    }
+}
+
+/// The pose stage's individual hand, posed by linear blend skinning (issue 7's fast path,
+/// [`SkinBinding::linear_into`]): the whole skin through one binding, and one binding per
+/// link over the vertices it dominates (with their full weights, so a link's vertices land
+/// exactly where the whole-skin posing puts them).
+#[derive(Clone, Debug)]
+pub struct SkinnedHand {
+    /// The individual hand.
+    pub hand: IndividualHand,
+    binding: SkinBinding,
+    links: Vec<usize>,
+    by_link: Vec<Vec<usize>>,
+    link_bindings: Vec<SkinBinding>,
+}
+
+impl SkinnedHand {
+    /// Bind `hand` for posing.
+    pub fn new(hand: IndividualHand) -> Result<SkinnedHand> {
+        let n = Link::ALL.len();
+        let links = dominant_links(&hand.weights);
+        let by_link = group_by_link(&links);
+        let link_bindings = by_link
+            .iter()
+            .map(|vs| {
+                let rest: Vec<Point> = vs.iter().map(|&i| hand.skin.vertices[i]).collect();
+                let w: Vec<Vec<(usize, f64)>> =
+                    vs.iter().map(|&i| hand.weights[i].clone()).collect();
+                SkinBinding::new(&rest, &w, n)
+            })
+            .collect::<Result<Vec<_>>>()?;
+        Ok(SkinnedHand {
+            binding: SkinBinding::new(&hand.skin.vertices, &hand.weights, n)?,
+            hand,
+            links,
+            by_link,
+            link_bindings,
+        })
+    }
+
+    /// The default hand: the template of `side` as an individual hand (its own skin, skeleton
+    /// and weights).
+    pub fn template(side: Side) -> Result<SkinnedHand> {
+        let t = load_template(side)?;
+        let h = IndividualHand::from_skin(
+            &t,
+            t.mesh.clone(),
+            t.skeleton.clone(),
+            WeightMethod::Template,
+        )?;
+        SkinnedHand::new(h)
+    }
+
+    /// The hand of a `reconstruct` output folder (template weights by homology).
+    pub fn load(dir: &std::path::Path) -> Result<SkinnedHand> {
+        SkinnedHand::new(IndividualHand::load(dir, WeightMethod::Template)?)
+    }
+}
+
+impl PosableHand for SkinnedHand {
+    fn skeleton(&self) -> &Skeleton {
+        &self.hand.skeleton
+    }
+    fn rest_mesh(&self) -> &TriMesh {
+        &self.hand.skin
+    }
+    fn vertex_link(&self) -> &[usize] {
+        &self.links
+    }
+    fn link_vertices(&self) -> &[Vec<usize>] {
+        &self.by_link
+    }
+    fn pose_all(&self, transforms: &[Isometry3<f64>], out: &mut Vec<Point>) {
+        self.binding.linear_into(transforms, out);
+    }
+    fn pose_link(&self, link: usize, transforms: &[Isometry3<f64>], out: &mut Vec<Point>) {
+        self.link_bindings[link].linear_into(transforms, out);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::anatomy::Joint;
+
+    #[test]
+    fn skinned_hand_poses_like_the_pose_stage_and_per_link_like_whole() {
+        let h = SkinnedHand::template(Side::Right).unwrap();
+        let mut pose = Pose::zero();
+        pose.angles[Joint::IMcp.index()] = [60f64.to_radians(), 0.0, 0.0];
+        pose.angles[Joint::TCmc.index()] = [20f64.to_radians(), 30f64.to_radians(), 0.0];
+        let mut all = Vec::new();
+        h.pose_vertices(&pose, &mut all);
+        // The pose stage's own LBS of the same hand.
+        let want = h
+            .hand
+            .posed_skin(&pose, crate::pose::Skinning::Linear)
+            .vertices;
+        assert_eq!(all.len(), want.len());
+        assert!(all.iter().zip(&want).all(|(a, b)| (a - b).norm() < 1e-9));
+        let t = link_transforms(h.skeleton(), &pose);
+        let mut part = Vec::new();
+        for l in 0..Link::ALL.len() {
+            h.pose_link(l, &t, &mut part);
+            assert_eq!(part.len(), h.link_vertices()[l].len());
+            for (p, &i) in part.iter().zip(&h.link_vertices()[l]) {
+                assert!((p - all[i]).norm() < 1e-9);
+            }
+        }
+        // The blend differs from rigid posing near the flexed joint, not far from it.
+        let r =
+            RigidHand::new(h.skeleton().clone(), h.rest_mesh().clone(), h.links.clone()).unwrap();
+        let mut rigid = Vec::new();
+        r.pose_vertices(&pose, &mut rigid);
+        let moved = all
+            .iter()
+            .zip(&rigid)
+            .filter(|(a, b)| (*a - *b).norm() > 0.5)
+            .count();
+        assert!(moved > 50, "{moved}");
+        let little = &h.link_vertices()[Link::LDist.index()];
+        assert!(little.iter().all(|&i| (all[i] - rigid[i]).norm() < 1e-9));
     }
 }

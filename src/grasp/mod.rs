@@ -9,6 +9,8 @@
 //! `grasp.glb` (posed hand and part, contact map as `COLOR_0`) and `contact_map.png`.
 
 pub mod autograsp;
+pub mod broad;
+pub mod collide;
 pub mod contact;
 pub mod hand;
 pub mod hold;
@@ -16,9 +18,9 @@ pub mod parts;
 pub mod quality;
 pub mod scene;
 
-pub use hand::{PosableHand, RigidHand};
+pub use hand::{PosableHand, RigidHand, SkinnedHand};
 
-use crate::anatomy::{Joint, Link};
+use crate::anatomy::Joint;
 use crate::error::{Error, Result};
 use crate::geometry::{Point, TriMesh};
 use crate::io::Units;
@@ -57,38 +59,14 @@ pub fn read_part(path: &Path, units: Units) -> Result<TriMesh> {
     }
 }
 
-/// The hand of a `reconstruct` output folder (`skin.obj`, homologous to the template, and
-/// `link_model.json`), posed rigidly by the template's dominant links; `None`: the template.
-pub fn load_hand(model: Option<&Path>, side: crate::anatomy::Side) -> Result<RigidHand> {
-    let template = RigidHand::template(side)?;
-    let Some(dir) = model else {
-        return Ok(template);
-    };
-    let skin_path = dir.join("skin.obj");
-    let skin = crate::io::obj::read_obj(&skin_path, Units::Millimetres)?;
-    if skin.n_vertices() != template.mesh.n_vertices() {
-        return Err(Error::input(
-            &skin_path,
-            format!(
-                "{} vertices, the template has {}: not a skin homologous to the template",
-                skin.n_vertices(),
-                template.mesh.n_vertices()
-            ),
-        ));
+/// The hand of a `reconstruct` output folder (`skin.obj` and `link_model.json`, read by the
+/// pose stage, template weights), posed by linear blend skinning; `None`: the template of
+/// `side` as an individual hand.
+pub fn load_hand(model: Option<&Path>, side: crate::anatomy::Side) -> Result<SkinnedHand> {
+    match model {
+        None => SkinnedHand::template(side),
+        Some(dir) => SkinnedHand::load(dir),
     }
-    let lm = dir.join("link_model.json");
-    let table = crate::validate::link_accuracy::read_joints(&lm)?;
-    let mut sk = template.skeleton.clone();
-    for j in Joint::ALL {
-        let (c, r) = crate::skeleton::record::record_frame(&table, j, &lm)?;
-        sk.joints[j.index()].centre = c;
-        sk.joints[j.index()].frame = r;
-    }
-    for (i, f) in crate::anatomy::Finger::ALL.iter().enumerate() {
-        let dj = f.joints()[2];
-        sk.tips[i] = sk.centre(dj) + (template.skeleton.tips[i] - template.skeleton.centre(dj));
-    }
-    RigidHand::new(sk, skin, template.links)
 }
 
 /// `grasp.json`.
@@ -124,10 +102,17 @@ pub struct GraspReport {
     pub max_penetration_mm: f64,
     /// Active joints whose link never touched.
     pub untouched_joints: Vec<String>,
+    /// Closing links stopped by another finger (finger-finger collision) before the part.
+    pub finger_collisions: Vec<autograsp::FingerCollision>,
+    /// Deepest entry of a finger's skin into another finger's core in the final posture, mm
+    /// ([`collide::finger_entry`]; 0: no finger passes into another).
+    pub finger_core_entry_mm: f64,
     /// Part facts.
     pub part: PartInfo,
     /// Warnings.
     pub warnings: Vec<String>,
+    /// Time of each step, s.
+    pub timings_s: Timings,
 }
 
 /// Part facts in `grasp.json`.
@@ -149,6 +134,23 @@ pub struct PartInfo {
     pub friction: f64,
 }
 
+/// Wall-clock seconds of each step of [`run_scene`].
+#[derive(Clone, Debug, Default, Serialize)]
+pub struct Timings {
+    /// Reading the part and building its query structures.
+    pub part_s: f64,
+    /// Placement search (0 for a given approach).
+    pub search_s: f64,
+    /// The autograsp from the approach.
+    pub autograsp_s: f64,
+    /// Contacts, grasp quality and the finger-finger check of the final posture.
+    pub evaluate_s: f64,
+    /// The rapier hold test.
+    pub hold_s: f64,
+    /// The whole scene (with the contact map distances), s.
+    pub total_s: f64,
+}
+
 /// Everything computed for one scene, before writing.
 pub struct GraspOutcome {
     /// The report.
@@ -157,19 +159,32 @@ pub struct GraspOutcome {
     pub hand_mesh: TriMesh,
     /// Contact set of the final posture.
     pub contacts: ContactSet,
+    /// Per skin vertex, signed distance to the part within [`COLOUR_RANGE_MM`] (contact map).
+    pub colour_distance: Vec<Option<f64>>,
     /// Part in the world.
     pub part_mesh: TriMesh,
 }
 
+/// Distances shown by the contact map's colour ramp, mm.
+pub const COLOUR_RANGE_MM: f64 = 10.0;
+
 /// Evaluate a scene with `hand` (see [`grasp_command`]).
 pub fn run_scene(scene: &Scene, hand: &dyn PosableHand, quiet: bool) -> Result<GraspOutcome> {
+    let mut timings = Timings::default();
+    let started = std::time::Instant::now();
+    let clock = started;
     let mesh = read_part(&scene.part_file, scene.part_units)?.transformed(&scene.part_pose);
     let (part, mut warnings) = PartShape::new(mesh).map_err(|e| e.in_file(&scene.part_file))?;
-    let warnings_file = scene.part_file.display().to_string();
     for w in warnings.iter_mut() {
-        *w = format!("{warnings_file}: {w}");
+        *w = format!(
+            "{}: part.file = {}: {w}",
+            scene.path.display(),
+            scene.part_file.display()
+        );
     }
+    timings.part_s = clock.elapsed().as_secs_f64();
     let plan = grasp_plan(scene.grasp);
+    let clock = std::time::Instant::now();
     let approach = match &scene.approach {
         Approach::Given(a) => scene.part_pose * a,
         Approach::Auto => {
@@ -192,9 +207,13 @@ pub fn run_scene(scene: &Scene, hand: &dyn PosableHand, quiet: bool) -> Result<G
             .approach
         }
     };
+    timings.search_s = clock.elapsed().as_secs_f64();
+    let clock = std::time::Instant::now();
     let root = root_for(hand, &nalgebra::Isometry3::identity(), &approach);
     let g = autograsp(hand, &part, &plan, root, &AutograspOptions::default())
         .map_err(|e| e.in_file(&scene.path))?;
+    timings.autograsp_s = clock.elapsed().as_secs_f64();
+    let clock = std::time::Instant::now();
     let mut pts = Vec::new();
     hand.pose_vertices(&g.pose, &mut pts);
     let areas = vertex_areas(hand.rest_mesh());
@@ -211,13 +230,29 @@ pub fn run_scene(scene: &Scene, hand: &dyn PosableHand, quiet: bool) -> Result<G
         &part.centre_of_mass,
         part.max_radius,
     );
-    let mut link_points = vec![Vec::new(); Link::ALL.len()];
-    for (p, &l) in pts.iter().zip(hand.vertex_link()) {
-        if l != Link::Arm.index() {
-            link_points[l].push(*p);
-        }
-    }
-    let ht = hold::hold_test(&link_points, &part, scene.mass_kg, scene.friction)?;
+    let hand_mesh = TriMesh {
+        vertices: pts,
+        faces: hand.rest_mesh().faces.clone(),
+    };
+    let finger_entry = collide::finger_entry(
+        hand,
+        &hand_mesh.vertices,
+        &crate::skeleton::forward_kinematics::link_transforms(hand.skeleton(), &g.pose),
+    );
+    timings.evaluate_s = clock.elapsed().as_secs_f64();
+    let clock = std::time::Instant::now();
+    let ht = hold::hold_test_hand(
+        hand,
+        &hand_mesh.vertices,
+        &part,
+        scene.mass_kg,
+        scene.friction,
+    )?;
+    timings.hold_s = clock.elapsed().as_secs_f64();
+    let colour_distance = contact::vertex_distances(&part, &hand_mesh.vertices, COLOUR_RANGE_MM)
+        .into_iter()
+        .map(|r| r.map(|x| x.0))
+        .collect();
     let r = approach.rotation.to_rotation_matrix();
     let m = r.matrix();
     let t = approach.translation.vector;
@@ -252,6 +287,8 @@ pub fn run_scene(scene: &Scene, hand: &dyn PosableHand, quiet: bool) -> Result<G
         total_contact_area_mm2: cs.total_area_mm2(),
         max_penetration_mm: cs.max_depth_mm(),
         untouched_joints: g.untouched.clone(),
+        finger_collisions: g.collisions.clone(),
+        finger_core_entry_mm: finger_entry,
         part: PartInfo {
             file: scene.part_file.display().to_string(),
             triangles: part.mesh.n_faces(),
@@ -262,27 +299,28 @@ pub fn run_scene(scene: &Scene, hand: &dyn PosableHand, quiet: bool) -> Result<G
             friction: scene.friction,
         },
         warnings,
-    };
-    let hand_mesh = TriMesh {
-        vertices: pts,
-        faces: hand.rest_mesh().faces.clone(),
+        timings_s: Timings {
+            total_s: started.elapsed().as_secs_f64(),
+            ..timings
+        },
     };
     Ok(GraspOutcome {
         report,
         hand_mesh,
         contacts: cs,
+        colour_distance,
         part_mesh: part.mesh,
     })
 }
 
 /// Contact-map colours: skin within the tolerance or inside red, then viridis over 0..10 mm of
 /// distance to the part, light grey beyond.
-pub fn contact_colours(c: &ContactSet, tol: f64) -> Vec<[u8; 3]> {
-    c.vertex_distance
+pub fn contact_colours(distance: &[Option<f64>], tol: f64) -> Vec<[u8; 3]> {
+    distance
         .iter()
         .map(|d| match d {
             Some(d) if *d <= tol => [220, 30, 30],
-            Some(d) => crate::render::viridis((d / 10.0).clamp(0.0, 1.0)),
+            Some(d) => crate::render::viridis((d / COLOUR_RANGE_MM).clamp(0.0, 1.0)),
             None => [200, 200, 200],
         })
         .collect()
@@ -294,7 +332,7 @@ pub fn write_outputs(o: &GraspOutcome, out: &Path) -> Result<()> {
     let json = serde_json::to_string_pretty(&o.report)
         .map_err(|e| Error::invalid(format!("grasp.json: {e}")))?;
     crate::io::atomic::write_bytes_atomic(&out.join("grasp.json"), json.as_bytes())?;
-    let colours = contact_colours(&o.contacts, ContactOptions::default().tolerance_mm);
+    let colours = contact_colours(&o.colour_distance, ContactOptions::default().tolerance_mm);
     let lin = |c: [u8; 3]| {
         let f = |x: u8| ((x as f32 / 255.0).powf(2.2)).clamp(0.0, 1.0);
         [f(c[0]), f(c[1]), f(c[2]), 1.0]
@@ -368,4 +406,102 @@ pub fn grasp_command(
     }
     write_outputs(&o, out)?;
     Ok(o.report)
+}
+
+/// The demo's grasp: writes the shipped bottle scene (`scenes/bottle.toml`, embedded) and its
+/// part (generated, [`parts::Part::Bottle`]) into `out`, then grasps it with the hand of the
+/// `reconstruct` folder `model_dir` ([`grasp_command`]), outputs in `out`.
+pub fn demo_bottle(model_dir: &Path, out: &Path) -> Result<GraspReport> {
+    std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
+    let scene = out.join("bottle.toml");
+    crate::io::atomic::write_bytes_atomic(
+        &scene,
+        include_str!("../../scenes/bottle.toml").as_bytes(),
+    )?;
+    crate::io::stl::write_stl(
+        &out.join("bottle.stl"),
+        &parts::Part::Bottle.mesh()?,
+        Units::Millimetres,
+    )?;
+    grasp_command(&scene, Some(model_dir), out, true)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::anatomy::Side;
+    use std::sync::OnceLock;
+
+    fn hand() -> &'static SkinnedHand {
+        static H: OnceLock<SkinnedHand> = OnceLock::new();
+        H.get_or_init(|| SkinnedHand::template(Side::Right).unwrap())
+    }
+
+    /// A scene file in `dir` naming `part` (written as STL, mm) with `grasp` lines.
+    fn scene_with(dir: &Path, part: &TriMesh, grasp: &str) -> Scene {
+        crate::io::stl::write_stl(&dir.join("p.stl"), part, Units::Millimetres).unwrap();
+        let text = format!(
+            "[part]\nfile = \"p.stl\"\nunits = \"mm\"\nfriction = 0.5\nmass_g = 100\n[grasp]\n{grasp}\n"
+        );
+        let path = dir.join("s.toml");
+        std::fs::write(&path, &text).unwrap();
+        scene::read_scene(&path).unwrap()
+    }
+
+    const SIDE: &str =
+        "type = \"power\"\napproach = { translation_mm = [-25, -36, 90], rotation_deg = [-90, -90, 0] }";
+
+    #[test]
+    fn bad_parts_and_approaches_give_one_line_messages_naming_scene_and_field() {
+        let dir = tempfile::tempdir().unwrap();
+        let scene_name = dir.path().join("s.toml").display().to_string();
+        // A bottle-sized part written in metres read as mm: 1000 times too small.
+        let tiny = crate::geometry::mesh::tests::cuboid(0.06, 0.06, 0.2);
+        let s = scene_with(dir.path(), &tiny, SIDE);
+        let o = run_scene(&s, hand(), true).unwrap();
+        let w = o.report.warnings.join("\n");
+        assert!(
+            w.contains(&scene_name)
+                && w.contains("part.units")
+                && w.contains("0.0600 x 0.0600 x 0.2000 mm"),
+            "{w}"
+        );
+        // An open part: inside tests off, surface distance only, with a warning.
+        let mut open = crate::geometry::mesh::tests::cuboid(60.0, 60.0, 200.0)
+            .transformed(&nalgebra::Isometry3::translation(-30.0, -30.0, 0.0));
+        open.faces.truncate(open.faces.len() - 2);
+        let s = scene_with(dir.path(), &open, SIDE);
+        let o = run_scene(&s, hand(), true).unwrap();
+        assert!(!o.report.part.closed);
+        let w = o.report.warnings.join("\n");
+        assert!(
+            w.contains(&scene_name) && w.contains("part.file") && w.contains("closed 2-manifold"),
+            "{w}"
+        );
+        assert!(o.report.warnings.iter().all(|w| !w.contains('\n')));
+        // The hand placed inside the part.
+        let bottle = parts::Part::Bottle.mesh().unwrap();
+        let inside = "type = \"power\"\napproach = { translation_mm = [0, 0, 90], rotation_deg = [-90, -90, 0] }";
+        let s = scene_with(dir.path(), &bottle, inside);
+        let e = run_scene(&s, hand(), true).err().unwrap().to_string();
+        assert!(
+            e.contains(&scene_name)
+                && e.contains("grasp.approach")
+                && e.contains("inside the part"),
+            "{e}"
+        );
+        assert!(!e.contains('\n'));
+        // An unknown grasp type.
+        let path = dir.path().join("s.toml");
+        std::fs::write(
+            &path,
+            "[part]\nfile = \"p.stl\"\nunits = \"mm\"\nfriction = 0.5\nmass_g = 100\n[grasp]\ntype = \"hook\"\napproach = \"auto\"\n",
+        )
+        .unwrap();
+        let e = scene::read_scene(&path).unwrap_err().to_string();
+        assert!(
+            e.contains(&scene_name) && e.contains("grasp.type") && e.contains("hook"),
+            "{e}"
+        );
+    }
 }

@@ -200,15 +200,17 @@ impl Hull {
             .collect();
         h.assign(&all, &(0..=D).collect::<Vec<_>>(), eps);
         let mut guard = 0usize;
+        // Facets that may have outside points (stale entries are skipped when popped).
+        let mut pending: Vec<usize> = (0..=D).collect();
+        // Visit marks of the visibility search: facet -> (round, visible).
+        let mut mark: Vec<(usize, bool)> = Vec::new();
         loop {
             guard += 1;
             if guard > 200_000 {
                 return None;
             }
-            let Some(f0) = h
-                .facets
-                .iter()
-                .position(|f| f.alive && !f.outside.is_empty())
+            let Some(f0) = std::iter::from_fn(|| pending.pop())
+                .find(|&f| h.facets[f].alive && !h.facets[f].outside.is_empty())
             else {
                 break;
             };
@@ -219,20 +221,21 @@ impl Hull {
                 .max_by(|&&a, &&b| h.dist(f0, a).total_cmp(&h.dist(f0, b)))
                 .expect("non-empty");
             // Visible facets by BFS from f0.
+            mark.resize(h.facets.len(), (0, false));
+            let seen = |mark: &[(usize, bool)], g: usize| mark[g].0 == guard;
             let mut visible = vec![f0];
-            let mut seen: HashMap<usize, bool> = HashMap::new();
-            seen.insert(f0, true);
+            mark[f0] = (guard, true);
             let mut qi = 0;
             while qi < visible.len() {
                 let f = visible[qi];
                 qi += 1;
                 for k in 0..D {
                     let g = h.facets[f].neighbours[k];
-                    if seen.contains_key(&g) {
+                    if seen(&mark, g) {
                         continue;
                     }
                     let vis = h.dist(g, apex) > eps;
-                    seen.insert(g, vis);
+                    mark[g] = (guard, vis);
                     if vis {
                         visible.push(g);
                     }
@@ -240,12 +243,12 @@ impl Hull {
             }
             // Horizon ridges: (ridge vertices, the facet beyond).
             let mut new_ids = Vec::new();
-            let mut ridge_map: HashMap<Vec<usize>, (usize, usize)> = HashMap::new();
+            let mut ridge_map: HashMap<[usize; D - 1], (usize, usize)> = HashMap::new();
             let mut orphans = Vec::new();
             for &f in &visible {
                 for k in 0..D {
                     let g = h.facets[f].neighbours[k];
-                    if seen[&g] {
+                    if mark[g].1 {
                         continue;
                     }
                     let mut verts = h.facets[f].verts;
@@ -279,8 +282,10 @@ impl Hull {
                     if verts[k] == apex {
                         continue;
                     }
-                    let mut key: Vec<usize> =
-                        (0..D).filter(|&m| m != k).map(|m| verts[m]).collect();
+                    let mut key = [0usize; D - 1];
+                    for (slot, m) in key.iter_mut().zip((0..D).filter(|&m| m != k)) {
+                        *slot = verts[m];
+                    }
                     key.sort_unstable();
                     match ridge_map.remove(&key) {
                         Some((other, ok)) => {
@@ -306,6 +311,7 @@ impl Hull {
             }
             orphans.retain(|&p| p != apex);
             h.assign(&orphans, &new_ids, eps);
+            pending.extend(new_ids.iter().copied());
         }
         // Check: every point inside every facet (round-off may have broken convexity).
         let ok = h.facets.iter().filter(|f| f.alive).all(|f| {
