@@ -12,6 +12,8 @@
 //! * [`axis_fit`]: common plane normal (Gamage & Lasenby 2002).
 //! * [`functional`]: estimators using both segments' poses, SCoRE (Ehrig et al. 2006) and SARA
 //!   (Ehrig et al. 2007), beyond the paper.
+//! * [`sta_model`]: SCoRE with a linear model of the clusters' soft-tissue artefact in the joint
+//!   angles (Camomilla et al. 2013, Cappello et al. 1997/2005), beyond the paper.
 //! * [`registration`]: equation 1, the per-frame registration of the parent's markers.
 //! * [`model`]: the whole link model of a subject from its trials, with diagnostics.
 
@@ -20,5 +22,6 @@ pub mod functional;
 pub mod model;
 pub mod registration;
 pub mod sphere_fit;
+pub mod sta_model;
 
 pub use model::{estimate_link_model, JointEstimate, LinkModel};

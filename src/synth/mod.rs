@@ -485,7 +485,13 @@ pub fn simulate(opts: &SynthOptions) -> Result<SyntheticSubject> {
     }
 
     // The static reference trial: every landmark, a few noisy frames.
-    let mut ref_rng = root.fork("reference-trial");
+    // A repeated session re-records the static trial too (new noise), as it re-records the
+    // calibration motions.
+    let mut ref_rng = if opts.repeat == 0 {
+        root.fork("reference-trial")
+    } else {
+        root.fork(&format!("reference-trial-repeat-{}", opts.repeat))
+    };
     let names = landmark_names();
     let positions = names
         .iter()
