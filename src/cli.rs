@@ -650,7 +650,7 @@ pub fn demo(out: &Path, log: &Log) -> Result<()> {
     let model = reconstruct(&subject_dir, &model_dir, &Log::new(true))?;
     let link_s = t2.elapsed().as_secs_f64();
     let v = validate(&subject_dir, &model_dir, &report_dir, &Log::new(true))?;
-    crate::pose::pose_command(
+    let fist = crate::pose::pose_command(
         &model_dir,
         "fist",
         &model_dir.join("fist.glb"),
@@ -660,7 +660,7 @@ pub fn demo(out: &Path, log: &Log) -> Result<()> {
     let (acc, surface) = (&v.link, &v.surface);
     if !log.quiet() {
         println!(
-            "ergohand demo: stages run: template, synth, link model, skin (sections 3.5-3.6), tetrahedral mesh, skinned hand, pose, validation"
+            "ergohand demo: stages run: template, synth, link model, skin (sections 3.5-3.6), tetrahedral mesh, skinned hand, validation report, pose, grasp"
         );
         for h in &t.hands {
             let (lo, hi) = h.mesh.bounds().expect("non-empty template");
@@ -718,6 +718,11 @@ pub fn demo(out: &Path, log: &Log) -> Result<()> {
             surface.max_mm
         );
         println!(
+            "  pose `fist` on the reconstructed hand: deepest finger-finger penetration {:.2} mm ({} joints moved to keep the digits apart)",
+            fist.penetration_mm,
+            fist.warnings.len()
+        );
+        println!(
             "  grasp of the 60 mm bottle (power, reconstructed hand): force closure {}, epsilon {:.4}, volume {:.2e}, holds {}, contact {:.0} mm², {:.1} s; {}",
             grasp.force_closure,
             grasp.epsilon,
@@ -747,12 +752,12 @@ pub fn demo(out: &Path, log: &Log) -> Result<()> {
             println!("    {}", model_dir.join(f).display());
         }
         println!("    {}", report_dir.join("metrics.json").display());
+        println!("    {}", report_dir.join("report.md").display());
         println!(
             "  done in {:.1} s; open {}",
             t0.elapsed().as_secs_f64(),
-            out.join("template").join("template-right.png").display()
+            report_dir.join("report.html").display()
         );
-        println!("  not in the demo yet: report pictures, batch (see README.md)");
     }
     Ok(())
 }
