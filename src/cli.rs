@@ -276,7 +276,7 @@ pub fn reconstruct_prepared(
             let (p, d) = handle
                 .join()
                 .map_err(|_| Error::invalid("tet: the template preparation thread panicked"))??;
-            Ok((TetSource::Own(p), d.as_secs_f64()))
+            Ok((TetSource::Own(Box::new(p)), d.as_secs_f64()))
         };
         reconstruct_stages(&subject, &template, joined, out, opts, log, t0)
     })
@@ -285,7 +285,7 @@ pub fn reconstruct_prepared(
 /// The template's prepared tet stage, shared by a batch or made for one subject.
 enum TetSource<'a> {
     Shared(&'a crate::tet::TemplateTet),
-    Own(crate::tet::TemplateTet),
+    Own(Box<crate::tet::TemplateTet>),
 }
 
 impl std::ops::Deref for TetSource<'_> {

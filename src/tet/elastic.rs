@@ -336,7 +336,8 @@ pub fn nearest_rotation(f: &Matrix3<f64>) -> Matrix3<f64> {
     let scale = f.norm_squared();
     let det = f.determinant();
     // Relative to |f|³, so the test does not depend on the units.
-    if !(det > 1e-10 * scale * scale.sqrt()) {
+    // NaN entries fail this test too, and go to the SVD's own handling.
+    if det.is_nan() || det <= 1e-10 * scale * scale.sqrt() {
         return nearest_rotation_svd(f);
     }
     let mut x = *f;
@@ -355,7 +356,7 @@ pub fn nearest_rotation(f: &Matrix3<f64>) -> Matrix3<f64> {
             return x;
         }
         d = x.determinant();
-        if !(d > 0.0) {
+        if d.is_nan() || d <= 0.0 {
             break;
         }
     }
