@@ -597,6 +597,17 @@ pub fn validate_suite(dir: &Path, report: &Path, log: &Log) -> Result<()> {
             serde_json::json!({"preset": o.preset.name(), "median_centre_3dof_mm": median(c3), "median_centre_1dof_mm": median(c1), "median_axis_deg": median(ax), "max_centre_mm": max, "skin": surf, "dimensions": dims, "seconds": secs, "joints": acc.joints}),
         );
     }
+    let mut tets = Vec::new();
+    for (name, ..) in &rows {
+        let q = crate::validate::tet_quality::read_tet_quality(
+            &dir.join("subjects").join(name).join("out"),
+        )?;
+        if let Some(serde_json::Value::Object(m)) = summary.get_mut(name) {
+            m.insert("tet".into(), serde_json::json!(q));
+        }
+        tets.push((name.clone(), q));
+    }
+    md.push_str(&crate::validate::tet_quality::tet_quality_markdown(&tets));
     create_dir(report)?;
     atomic::write_bytes_atomic(&report.join("link-accuracy.md"), md.as_bytes())?;
     let json =

@@ -18,6 +18,7 @@ pub mod report_md;
 pub mod report_tables;
 pub mod suite_index;
 pub mod surface_error;
+pub mod tet_quality;
 pub mod thresholds;
 
 pub use dimension_accuracy::{dimension_accuracy, DimensionAccuracy};
