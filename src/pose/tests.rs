@@ -20,19 +20,20 @@ fn template_hand(side: Side) -> (TemplateHand, IndividualHand) {
     (t, h)
 }
 
-/// A simulated subject reconstructed as `reconstruct` does: link model from its trials, skin
-/// fitted to its reference trial.
+/// A simulated subject (3-s trials) reconstructed as `reconstruct` does.
 fn simulated_hand(seed: u64, method: WeightMethod) -> IndividualHand {
-    simulated_hand_for(seed, 3.0, method)
-}
-
-fn simulated_hand_for(seed: u64, duration_s: f64, method: WeightMethod) -> IndividualHand {
     let s = simulate(&SynthOptions {
-        duration_s: Some(duration_s),
+        duration_s: Some(3.0),
         voxel_mm: 2.0,
         ..SynthOptions::new(seed, Preset::Typical)
     })
     .unwrap();
+    reconstructed_hand(&s, method)
+}
+
+/// The hand `reconstruct` makes of a simulated subject: link model from its trials, skin fitted
+/// to its reference trial, section 3.6's centres.
+fn reconstructed_hand(s: &crate::synth::SyntheticSubject, method: WeightMethod) -> IndividualHand {
     let model = crate::link::model::estimate_link_model_from(
         s.subject.hand,
         s.subject.reference_frame,
@@ -49,6 +50,10 @@ fn simulated_hand_for(seed: u64, duration_s: f64, method: WeightMethod) -> Indiv
         &crate::skin::pipeline::SkinOptions::default(),
     )
     .unwrap();
+    let pairs = crate::skin::section_centre::edge_pairs(&t).unwrap();
+    let (centred, shifts) =
+        crate::skin::section_centre::centre_on_cross_section(&model.skeleton, &fit.high, &pairs);
+    let model = model.with_skin_centres(&centred, &shifts);
     IndividualHand::from_skin(&t, fit.high, model.skeleton, method).unwrap()
 }
 
@@ -507,30 +512,7 @@ fn fist_contacts_resolved_on_individual_hands() {
             WeightMethod::Template,
         )
         .unwrap();
-        let model = crate::link::model::estimate_link_model_from(
-            s.subject.hand,
-            s.subject.reference_frame,
-            &s.trials,
-        )
-        .unwrap();
-        let fit = crate::skin::pipeline::fit_skin(
-            &t,
-            &s.trials["reference"],
-            &s.subject.dimensions,
-            s.subject.marker_offset_mm,
-            Some(&model),
-            &crate::skin::pipeline::SkinOptions::default(),
-        )
-        .unwrap();
-        let pairs = crate::skin::section_centre::edge_pairs(&t).unwrap();
-        let (centred, shifts) = crate::skin::section_centre::centre_on_cross_section(
-            &model.skeleton,
-            &fit.high,
-            &pairs,
-        );
-        let model = model.with_skin_centres(&centred, &shifts);
-        let recon = IndividualHand::from_skin(&t, fit.high, model.skeleton, WeightMethod::Template)
-            .unwrap();
+        let recon = reconstructed_hand(&s, WeightMethod::Template);
         for (who, h) in [("true", &truth), ("reconstructed", &recon)] {
             for sk in [Skinning::DualQuaternion, Skinning::Linear] {
                 let r = crate::pose::resolve_finger_contacts(h, &fist, sk, &opts);
