@@ -1,5 +1,6 @@
 //! Grasp stage (issue 8): one evaluation (pose by linear blend skinning + contacts + epsilon) of
-//! the 37k-face template hand against a ~100k-triangle bottle, one autograsp, and a placement search (100 candidates;
+//! the 37k-face template hand against a ~100k-triangle bottle, its contact query and its
+//! epsilon/volume alone, one autograsp, and a placement search (100 candidates;
 //! the issue's 1,000-candidate figure is ten times this, the search being a parallel map).
 
 use criterion::{criterion_group, criterion_main, Criterion};
@@ -47,6 +48,38 @@ fn grasp_bench(c: &mut Criterion) {
                 &ContactOptions::default(),
             );
             grasp_quality(&cs.contacts, 0.5, &part.centre_of_mass, part.max_radius)
+        })
+    });
+    // Its two parts apart (issue 9's "contact query" and "epsilon" benches).
+    let mut posed = Vec::new();
+    hand.pose_vertices(&g.pose, &mut posed);
+    gr.bench_function("contact_query", |b| {
+        b.iter(|| {
+            contacts(
+                &part,
+                black_box(&posed),
+                hand.vertex_link(),
+                &areas,
+                &ContactOptions::default(),
+            )
+        })
+    });
+    let cs = contacts(
+        &part,
+        &posed,
+        hand.vertex_link(),
+        &areas,
+        &ContactOptions::default(),
+    );
+    eprintln!("epsilon bench: {} contacts", cs.contacts.len());
+    gr.bench_function("epsilon_volume", |b| {
+        b.iter(|| {
+            grasp_quality(
+                black_box(&cs.contacts),
+                0.5,
+                &part.centre_of_mass,
+                part.max_radius,
+            )
         })
     });
     gr.bench_function("autograsp_power_bottle", |b| {
