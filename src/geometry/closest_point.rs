@@ -75,7 +75,9 @@ pub struct RayHit {
 /// Closest point on triangle `abc` to `p` (Ericson 2005, section 5.1.5, `ClosestPtPointTriangle`):
 /// classifies `p` into the Voronoi regions of the three corners, three edges and the face, and
 /// projects onto that feature. Returns the point, its barycentric coordinates and the feature.
-/// A degenerate triangle (zero area) yields a point on one of its edges or corners.
+/// A degenerate triangle (zero area) yields a point on one of its edges or corners: an edge of
+/// zero length has no Voronoi region of its own (its region test holds trivially and its
+/// projection would be 0/0), so it is skipped and the neighbouring edge or corner answers.
 pub fn closest_point_triangle(
     p: &Point,
     a: &Point,
@@ -97,7 +99,8 @@ pub fn closest_point_triangle(
         return (*b, [0.0, 1.0, 0.0], Feature::Vertex(1));
     }
     let vc = d1 * d4 - d3 * d2;
-    if vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0 {
+    // d1 - d3 = |ab|², d2 - d6 = |ac|² and (d4 - d3) + (d5 - d6) = |bc|² below.
+    if vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0 && d1 - d3 > 0.0 {
         let v = d1 / (d1 - d3);
         return (a + ab * v, [1.0 - v, v, 0.0], Feature::Edge(0));
     }
@@ -108,12 +111,12 @@ pub fn closest_point_triangle(
         return (*c, [0.0, 0.0, 1.0], Feature::Vertex(2));
     }
     let vb = d5 * d2 - d1 * d6;
-    if vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0 {
+    if vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0 && d2 - d6 > 0.0 {
         let w = d2 / (d2 - d6);
         return (a + ac * w, [1.0 - w, 0.0, w], Feature::Edge(2));
     }
     let va = d3 * d6 - d5 * d4;
-    if va <= 0.0 && (d4 - d3) >= 0.0 && (d5 - d6) >= 0.0 {
+    if va <= 0.0 && (d4 - d3) >= 0.0 && (d5 - d6) >= 0.0 && (d4 - d3) + (d5 - d6) > 0.0 {
         let w = (d4 - d3) / ((d4 - d3) + (d5 - d6));
         return (b + (c - b) * w, [0.0, 1.0 - w, w], Feature::Edge(1));
     }
@@ -740,12 +743,37 @@ mod tests {
     fn degenerate_triangles_give_finite_points() {
         let a = Point::new(0.0, 0.0, 0.0);
         let b = Point::new(1.0, 1.0, 1.0);
-        let p = Point::new(3.0, -2.0, 0.5);
-        for t in [[a, a, a], [a, b, b], [a, b, Point::from(b.coords * 2.0)]] {
-            let (q, bary, _) = closest_point_triangle(&p, &t[0], &t[1], &t[2]);
-            assert!(q.coords.iter().all(|x| x.is_finite()) && bary.iter().all(|x| x.is_finite()));
-            let r = reference_triangle(&p, t);
-            assert!(((q - p).norm() - (r - p).norm()).abs() < 1e-9);
+        let c = Point::from(b.coords * 2.0);
+        // Every zero-length edge in every position (the slivers of a marching-tetrahedra
+        // isosurface have them), and collinear corners, seen from points all around.
+        let triangles = [
+            [a, a, a],
+            [a, b, b],
+            [b, a, b],
+            [a, a, b],
+            [b, b, a],
+            [a, b, a],
+            [a, b, c],
+            [c, a, b],
+        ];
+        for p in [
+            Point::new(3.0, -2.0, 0.5),
+            Point::new(-1.0, 0.2, 0.1),
+            Point::new(0.5, 0.5, 0.6),
+            Point::new(2.5, 2.0, 2.2),
+        ] {
+            for t in triangles {
+                let (q, bary, _) = closest_point_triangle(&p, &t[0], &t[1], &t[2]);
+                assert!(
+                    q.coords.iter().all(|x| x.is_finite()) && bary.iter().all(|x| x.is_finite()),
+                    "{t:?} from {p}"
+                );
+                let r = reference_triangle(&p, t);
+                assert!(
+                    ((q - p).norm() - (r - p).norm()).abs() < 1e-9,
+                    "{t:?} from {p}"
+                );
+            }
         }
     }
 

@@ -55,10 +55,7 @@ pub fn error_map(skin: &TriMesh, reference: &TriMesh) -> ErrorMap {
 /// [`error_map`] measuring at most `max_reverse` reference vertices (at least 1).
 pub fn error_map_with(skin: &TriMesh, reference: &TriMesh, max_reverse: usize) -> ErrorMap {
     let (forward, (reverse, stride)) = rayon::join(
-        || {
-            let solid = without_degenerate_faces(reference);
-            distances_to_surface(&skin.vertices, &AabbTree::new(&solid))
-        },
+        || distances_to_surface(&skin.vertices, &AabbTree::new(reference)),
         || {
             let stride = reference.n_vertices().div_ceil(max_reverse.max(1)).max(1);
             let pts: Vec<Point> = reference.vertices.iter().step_by(stride).copied().collect();
@@ -72,28 +69,6 @@ pub fn error_map_with(skin: &TriMesh, reference: &TriMesh, max_reverse: usize) -
         reference_to_skin: reverse,
         reference_vertices: reference.n_vertices(),
         reference_stride: stride,
-    }
-}
-
-/// `mesh` without its zero-area faces. An isosurface has many slivers whose corners are
-/// collinear; they add no point to the surface that their neighbours do not have, and the
-/// closest-point query of a collinear triangle is not finite, which defeats the tree's pruning
-/// (every face is then visited) for every query point near one.
-fn without_degenerate_faces(mesh: &TriMesh) -> TriMesh {
-    let faces: Vec<[usize; 3]> = mesh
-        .faces
-        .iter()
-        .enumerate()
-        .filter(|(f, t)| {
-            let [a, b, c] = t.map(|i| mesh.vertices[i]);
-            let scale = (b - a).norm_squared().max((c - a).norm_squared());
-            mesh.face_cross(*f).norm() > 1e-9 * scale
-        })
-        .map(|(_, t)| *t)
-        .collect();
-    TriMesh {
-        vertices: mesh.vertices.clone(),
-        faces,
     }
 }
 

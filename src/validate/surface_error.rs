@@ -3,8 +3,8 @@
 //! percentile.
 
 use crate::error::Result;
-use crate::geometry::closest_point::{closest_point_triangle, AabbTree};
-use crate::geometry::{Point, TriMesh};
+use crate::geometry::closest_point::AabbTree;
+use crate::geometry::Point;
 use crate::io::{obj, ply, Units};
 use serde::Serialize;
 use std::path::Path;
@@ -48,26 +48,12 @@ impl SurfaceError {
     }
 }
 
-/// Unsigned distance of every point of `points` to the surface of `tree`, in order.
-///
-/// The tree returns a non-finite distance for a handful of points near degenerate (zero-area)
-/// triangles of an isosurface; those points are measured by brute force over the faces that
-/// give finite distances, so no point is silently left out.
+/// Unsigned distance of every point of `points` to the surface of `tree`, in order (infinite
+/// for a tree without faces or a non-finite point, so it shows in the statistics).
 pub fn distances_to_surface(points: &[Point], tree: &AabbTree) -> Vec<f64> {
-    let r: &TriMesh = tree.mesh();
     tree.distances(points)
         .into_iter()
-        .zip(points)
-        .map(|(x, p)| match x {
-            Some(x) if x.is_finite() => x,
-            _ => (0..r.n_faces())
-                .map(|f| {
-                    let [a, b, c] = r.corners(f);
-                    (closest_point_triangle(p, &a, &b, &c).0 - p).norm()
-                })
-                .filter(|x| x.is_finite())
-                .fold(f64::INFINITY, f64::min),
-        })
+        .map(|d| d.unwrap_or(f64::INFINITY))
         .collect()
 }
 
