@@ -4,18 +4,8 @@
 
 use std::collections::BTreeSet;
 use std::path::Path;
-use std::process::{Command, Output};
-
-fn ergohand(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_ergohand"))
-        .args(args)
-        .output()
-        .expect("the binary runs")
-}
-
-fn stderr(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stderr).into_owned()
-}
+mod common;
+use common::{ergohand, stderr};
 
 /// The status of each subject in `OUT/batch-summary.json`.
 fn statuses(out: &Path) -> Vec<(String, String)> {

@@ -3,26 +3,8 @@
 
 use ergohand::io::Units;
 use std::path::Path;
-use std::process::{Command, Output};
-
-fn ergohand(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_ergohand"))
-        .args(args)
-        .output()
-        .expect("the binary runs")
-}
-
-fn stderr(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stderr).into_owned()
-}
-
-/// The last stderr line is the error, one line, starting with `error:`.
-fn error_line(o: &Output) -> String {
-    let e = stderr(o);
-    let line = e.lines().last().unwrap_or_default().to_string();
-    assert!(line.starts_with("error: "), "stderr: {e}");
-    line
-}
+mod common;
+use common::{ergohand, error_line, stderr};
 
 #[test]
 fn synth_writes_a_subject_and_refuses_bad_options() {
