@@ -326,10 +326,13 @@ pub fn run(
     // The template's tet stage (cached mesh, binding, factorisation) once per hand, shared by
     // every subject of that hand, before subjects race to build the cache. A hand whose
     // preparation fails leaves its subjects to prepare (and report) it themselves.
-    let mut sides: Vec<Side> = todo
+    // Per subject to do, its hand (None when subject.toml does not load: that subject's own
+    // run reports why).
+    let hands: Vec<Option<Side>> = todo
         .iter()
-        .filter_map(|&i| Subject::load(&subjects[i].1).ok().map(|s| s.hand))
+        .map(|&i| Subject::load(&subjects[i].1).ok().map(|s| s.hand))
         .collect();
+    let mut sides: Vec<Side> = hands.iter().flatten().copied().collect();
     sides.sort_by_key(|s| *s == Side::Left);
     sides.dedup();
     let prepared: Vec<crate::tet::TemplateTet> = pool.install(|| {
@@ -341,8 +344,8 @@ pub fn run(
             })
             .collect()
     });
-    let prepared_for = |dir: &Path| {
-        let hand = Subject::load(dir).ok()?.hand;
+    let prepared_for = |k: usize| {
+        let hand = hands[k]?;
         prepared.iter().find(|p| p.side == hand)
     };
 
@@ -359,7 +362,7 @@ pub fn run(
                 let t = Instant::now();
                 let result = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
                     pool.install(|| {
-                        let shared = prepared_for(dir);
+                        let shared = prepared_for(k);
                         cli::reconstruct_prepared(dir, &sout, &opts.skin, shared, &Log::new(true))
                     })
                 }));
