@@ -141,12 +141,11 @@ pub fn pose_command_with(
         warnings.extend(r.describe().into_iter().map(|w| format!("{pose_arg}: {w}")));
         (r.pose, r.depth_after_mm)
     } else {
-        let t = crate::skeleton::forward_kinematics::link_transforms(&hand.skeleton, &pose);
-        let posed = crate::geometry::TriMesh {
-            vertices: hand.binding().apply(method, &t),
-            faces: hand.skin.faces.clone(),
-        };
-        let pen = quality::finger_penetration(&posed, &hand.weights, 12.0);
+        let pen = quality::finger_penetration(
+            &hand.posed_skin(&pose, method),
+            &hand.weights,
+            ResolveOptions::default().max_depth_mm,
+        );
         (pose, pen.depth_mm)
     };
     for w in &warnings {

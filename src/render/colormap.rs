@@ -86,46 +86,14 @@ pub fn map_values(values: &[f64], min: f64, max: f64) -> Vec<[u8; 3]> {
 }
 
 /// A vertical colour bar image `width × height` on white: the viridis gradient (max at the
-/// top) with tick marks and labels "`min` mm", midpoint and "`max` mm" to its right.
+/// top) with tick marks and labels "`min` mm", midpoint and "`max` mm" to its right
+/// ([`colour_bar_ticks`] with those three ticks; none for an empty range).
 pub fn colour_bar(min_mm: f64, max_mm: f64, width: u32, height: u32) -> Result<Image> {
-    let mut img = Image::new(width, height, [255, 255, 255]);
-    let size = (height as f64 / 20.0).clamp(10.0, 18.0);
-    let pad = (size * 0.75).ceil() as i64;
-    let bar_w = ((width as f64 * 0.25) as i64).clamp(4, 40);
-    let (top, bottom) = (pad, height as i64 - pad - 1);
-    if bottom <= top || width < 8 {
-        return Ok(img);
-    }
-    let x0 = pad.min(width as i64 / 4);
-    for y in top..=bottom {
-        let t = (bottom - y) as f64 / (bottom - top) as f64;
-        let c = viridis(t);
-        for x in x0..x0 + bar_w {
-            img.set_pixel(x, y, c);
-        }
-    }
-    let black = [0, 0, 0];
-    let ticks = [
-        (bottom, min_mm),
-        ((top + bottom) / 2, 0.5 * (min_mm + max_mm)),
-        (top, max_mm),
-    ];
-    for (y, v) in ticks {
-        for x in x0 + bar_w..x0 + bar_w + 5 {
-            img.set_pixel(x, y, black);
-        }
-        let text = format!("{v:.1} mm");
-        let (_, th) = label_size(&text, size)?;
-        draw_label_sized(
-            &mut img,
-            (x0 + bar_w + 8) as i32,
-            (y - th as i64 / 2) as i32,
-            &text,
-            black,
-            size,
-        )?;
-    }
-    Ok(img)
+    let ticks: Vec<(f64, String)> = [min_mm, 0.5 * (min_mm + max_mm), max_mm]
+        .into_iter()
+        .map(|v| (v, format!("{v:.1} mm")))
+        .collect();
+    colour_bar_ticks(min_mm, max_mm, &ticks, "", width, height)
 }
 
 /// A vertical colour bar `width × height` on white with `title` above it: the viridis gradient
