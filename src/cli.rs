@@ -446,9 +446,17 @@ fn reconstruct_stages<'p>(
 
 /// `ergohand pose OUT --pose POSE --out FILE.glb|obj`: the hand of a `reconstruct` folder in a
 /// pose file's or a built-in pose's joint angles (see [`crate::pose::pose_command`]).
-pub fn pose(model: &Path, pose: &str, out: &Path, keep_angles: bool, log: &Log) -> Result<()> {
+pub fn pose(
+    model: &Path,
+    pose: &str,
+    out: &Path,
+    keep_angles: bool,
+    plain_skinning: bool,
+    log: &Log,
+) -> Result<()> {
     let opts = crate::pose::PoseOptions {
         resolve_contacts: !keep_angles,
+        preserve_volume: !plain_skinning,
     };
     crate::pose::pose_command_with(model, pose, out, &opts, log).map(|_| ())
 }

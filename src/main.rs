@@ -104,6 +104,10 @@ enum Command {
         /// digits then enter each other; by default they give way by a few degrees.
         #[arg(long)]
         keep_angles: bool,
+        /// Dual-quaternion skinning alone for .obj/.vtk/.msh, without the correction that keeps
+        /// each finger segment's volume (a skinned .glb is never corrected).
+        #[arg(long)]
+        plain_skinning: bool,
     },
     /// Grasp and contact checks on a CAD part.
     Grasp {
@@ -179,7 +183,15 @@ fn main() -> ExitCode {
             pose,
             out,
             keep_angles,
-        } => cli::pose(&model, &pose.to_string_lossy(), &out, keep_angles, &log),
+            plain_skinning,
+        } => cli::pose(
+            &model,
+            &pose.to_string_lossy(),
+            &out,
+            keep_angles,
+            plain_skinning,
+            &log,
+        ),
         Command::Grasp { scene, model, out } => {
             ergohand::grasp::grasp_command(&scene, model.as_deref(), &out, log.quiet()).map(|r| {
                 log.info(format!(

@@ -10,23 +10,32 @@
 //! * [`pose_file`]: `POSE.toml` and the named poses.
 //! * [`gltf`]: the skinned hand as a glTF scene, optionally posed by its joint nodes.
 //! * [`quality`]: self-penetration and segment-volume measures.
+//! * [`volume_correction`]: keeping each finger segment's volume under DQS.
 //!
 //! # Defaults and why
 //! Weights: the template's, carried by homology ([`WeightMethod::Template`]). They are the
 //! artist's weights of the generic hand, painted for exactly this mesh, with the joint creases
 //! and the wrist band; bone heat on the skin ([`WeightMethod::BoneHeat`]) is available. Measured
-//! in `fist` on the template as the individual hand (`tests::fist_quality_figures`):
+//! in `fist` (contacts resolved as `pose` does) by `tests::fist_quality_figures`; volume change
+//! of the 15 finger segments is that of their tissue in the tetrahedral mesh
+//! ([`quality::segment_volumes`]):
 //!
-//! | weights, skinning | finger-finger penetration | finger segments within 5 % volume | mean abs. change | worst |
+//! | hand, weights, skinning | finger-finger penetration | segments within 5 % | mean abs. change | worst |
 //! | --- | --- | --- | --- | --- |
-//! | template, LBS | 1.10 mm | 11 / 15 | 4.2 % | L_PROX +20 % |
-//! | template, DQS | 1.15 mm | 8 / 15 | 6.3 % | L_PROX +23 % |
-//! | heat, LBS | 1.33 mm | 7 / 15 | 6.3 % | I_MID −13 % |
-//! | heat, DQS | 5.03 mm | 9 / 15 | 5.7 % | L_MID +19 % |
+//! | template, template, LBS | 0.00 mm | 6 / 15 | 9.7 % | M_PROX −21.9 % |
+//! | template, template, DQS | 0.00 mm | 12 / 15 | 4.5 % | M_PROX −18.1 % |
+//! | template, template, DQS + volume | 0.67 mm | 15 / 15 | 0.2 % | L_PROX −0.3 % |
+//! | template, heat, DQS | 0.63 mm | 10 / 15 | 5.8 % | M_PROX −19.7 % |
+//! | template, heat, DQS + volume | 2.23 mm | 15 / 15 | 0.2 % | M_PROX −0.2 % |
+//! | seed 72 true hand, template, DQS + volume | 0.72 mm | 15 / 15 | 0.1 % | M_PROX −0.5 % |
+//! | seed 72 reconstructed (30-s trials), DQS | 0.86 mm | 7 / 15 | 6.6 % | M_PROX −19.7 % |
+//! | seed 72 reconstructed (30-s trials), DQS + volume | 0.96 mm | 15 / 15 | 0.2 % | R_PROX −0.9 % |
 //!
-//! Template weights keep the fingers apart in the fist with either skinning; heat weights let
-//! the thumb enter the index by 5 mm under DQS. Segment volume is the proxy of
-//! [`quality::segment_volumes`] (each link's faces closed by cones to its bone's midpoint).
+//! Dual-quaternion skinning alone loses the proximal phalanges' tissue in a fist because the
+//! joints' axes lie dorsal of the fingers' cross-sections (derivation in [`volume_correction`]);
+//! the correction, on by default for baked outputs (`.obj`, `.vtk`, `.msh`; `--plain-skinning`
+//! turns it off), swells the blended band around each joint just enough to keep every segment's
+//! volume. Template weights keep the fingers apart better than heat weights.
 //!
 //! Skinning of files: dual quaternions ([`Skinning::DualQuaternion`]), which do not collapse a
 //! joint's cross-section; grasp search uses the LBS fast path ([`SkinBinding::linear_into`],
@@ -43,6 +52,7 @@ pub mod harmonic_weights;
 pub mod pose_file;
 pub mod quality;
 pub mod skinning;
+pub mod volume_correction;
 pub mod weights;
 
 pub use contact_resolve::{resolve_finger_contacts, ResolveOptions, Resolved};
@@ -50,6 +60,7 @@ pub use hand::IndividualHand;
 pub use harmonic_weights::{pose_tet_nodes, tet_node_weights};
 pub use pose_file::{named_pose, parse_pose_toml, read_pose_file, resolve_pose, NAMED_POSES};
 pub use skinning::{dual_quaternion, linear_blend, SkinBinding, Skinning, SparseWeights};
+pub use volume_correction::{VolumeOptions, VolumePose, VolumeRig};
 pub use weights::{bone_heat_weights, template_weights, HeatOptions, WeightMethod};
 
 use crate::cli::Log;
@@ -75,14 +86,28 @@ pub struct PoseOptions {
     /// Change the angles as little as needed to keep the digits from entering each other
     /// ([`resolve_finger_contacts`]); off: the angles exactly as given (after clamping).
     pub resolve_contacts: bool,
+    /// Keep every finger segment's volume in the posed skin and tet mesh
+    /// ([`volume_correction`]); off: dual-quaternion skinning alone. A GLB is skinned by its
+    /// viewer and never corrected.
+    pub preserve_volume: bool,
 }
 
 impl Default for PoseOptions {
     fn default() -> Self {
         PoseOptions {
             resolve_contacts: true,
+            preserve_volume: true,
         }
     }
+}
+
+/// The change of largest magnitude, with its sign.
+fn signed_worst(changes: &[(crate::anatomy::Link, f64)]) -> f64 {
+    changes
+        .iter()
+        .map(|c| c.1)
+        .max_by(|a, b| a.abs().total_cmp(&b.abs()))
+        .unwrap_or(0.0)
 }
 
 /// [`pose_command_with`] the default options (contacts resolved).
@@ -101,7 +126,9 @@ pub fn pose_command(
 /// warning per joint, and write `out_file` by its extension: `.glb` the skinned hand with the
 /// pose on its joint nodes (a viewer shows it posed and can re-pose it), `.obj` the posed skin
 /// (dual-quaternion skinning), mm; `.vtk` or `.msh` the posed tetrahedral mesh `OUT/tet.vtk`
-/// (its nodes dual-quaternion skinned with [`tet_node_weights`]), mm.
+/// (its nodes dual-quaternion skinned with [`tet_node_weights`]), mm. Baked outputs keep each
+/// finger segment's volume ([`VolumeRig::pose`], unless `opts.preserve_volume` is off); an
+/// `.obj` of a folder without `tet.vtk` is plain DQS, with a warning.
 ///
 /// Unless `opts.resolve_contacts` is off, the angles then give way where the digits of this
 /// hand would enter each other by more than 1 mm ([`resolve_finger_contacts`], with the
@@ -148,6 +175,53 @@ pub fn pose_command_with(
         );
         (pose, pen.depth_mm)
     };
+    let baked = if ext.as_deref() == Some("glb") {
+        None
+    } else if !opts.preserve_volume && ext.as_deref() == Some("obj") {
+        // The plain DQS skin needs no tetrahedral mesh.
+        None
+    } else if ext.as_deref() == Some("obj") && !model_dir.join("tet.vtk").exists() {
+        warnings.push(format!(
+            "{}: no tet.vtk, so the segment volumes are not kept (dual-quaternion skinning \
+             alone); re-run reconstruct to write it",
+            model_dir.display()
+        ));
+        None
+    } else {
+        let rig = volume_rig(&hand, model_dir)?;
+        let posed = rig.pose(
+            &hand,
+            &pose,
+            opts.preserve_volume,
+            &VolumeOptions::default(),
+        )?;
+        log.info(if opts.preserve_volume {
+            format!(
+                "segment volumes: worst finger segment {:+.1} % after the bulge correction \
+                 ({} Newton steps; dual-quaternion skinning alone: {:.1} %)",
+                100.0 * signed_worst(&posed.volume_changes),
+                posed.correction.iterations,
+                100.0 * posed.correction.worst_before,
+            )
+        } else {
+            format!(
+                "segment volumes: worst finger segment {:+.1} % (dual-quaternion skinning alone)",
+                100.0 * signed_worst(&posed.volume_changes)
+            )
+        });
+        Some((rig.tets, posed))
+    };
+    let penetration_mm = match &baked {
+        Some((_, p)) => {
+            quality::finger_penetration(
+                &p.skin,
+                &hand.weights,
+                ResolveOptions::default().max_depth_mm,
+            )
+            .depth_mm
+        }
+        None => penetration_mm,
+    };
     for w in &warnings {
         log.warn(w);
     }
@@ -163,7 +237,11 @@ pub fn pose_command_with(
             write_glb(out_file, &scene, Units::Metres)?;
         }
         Some("vtk") | Some("msh") => {
-            let posed = posed_tet(&hand, model_dir, &pose)?;
+            let (tets, b) = baked.ok_or_else(|| Error::invalid("posed tet mesh missing"))?;
+            let posed = crate::tet::TetMesh {
+                nodes: b.nodes,
+                tets,
+            };
             if ext.as_deref() == Some("vtk") {
                 crate::io::vtk::write_vtk(out_file, &posed, Units::Millimetres)?;
             } else {
@@ -171,7 +249,10 @@ pub fn pose_command_with(
             }
         }
         _ => {
-            let posed = hand.posed_skin(&pose, Skinning::DualQuaternion);
+            let posed = match baked {
+                Some((_, b)) => b.skin,
+                None => hand.posed_skin(&pose, Skinning::DualQuaternion),
+            };
             write_obj(out_file, &posed, Units::Millimetres, None)?;
         }
     }
@@ -187,15 +268,11 @@ pub fn pose_command_with(
     })
 }
 
-/// The tetrahedral mesh of the `reconstruct` folder `model_dir` (`tet.vtk`, homologous to the
-/// template's) in `pose`: its nodes dual-quaternion skinned with [`tet_node_weights`] through
-/// `hand`'s skeleton. Errors naming `tet.vtk` when it is not homologous to the template's tet
-/// mesh (made by another version or other stuffing parameters: re-run reconstruct).
-pub fn posed_tet(
-    hand: &IndividualHand,
-    model_dir: &Path,
-    pose: &crate::skeleton::Pose,
-) -> Result<crate::tet::TetMesh> {
+/// The [`VolumeRig`] of the `reconstruct` folder `model_dir`: its tetrahedral mesh
+/// (`tet.vtk`, homologous to the template's) with the template's node weights. Errors naming
+/// `tet.vtk` when it is missing or not homologous to the template's tet mesh (made by another
+/// version or other stuffing parameters: re-run reconstruct).
+pub fn volume_rig(hand: &IndividualHand, model_dir: &Path) -> Result<VolumeRig> {
     let path = model_dir.join("tet.vtk");
     let tet = crate::io::vtk::read_vtk(&path, Units::Millimetres)?;
     let template = crate::template::load_template(hand.side)?;
@@ -214,21 +291,7 @@ pub fn posed_tet(
             ),
         ));
     }
-    let weights = tet_node_weights(&template, &prepared)?;
-    let t = crate::skeleton::forward_kinematics::link_transforms(&hand.skeleton, pose);
-    let skin = hand.posed_skin(pose, Skinning::DualQuaternion);
-    let nodes = pose_tet_nodes(
-        &tet.nodes,
-        &weights,
-        &prepared.binding,
-        &skin,
-        &t,
-        Skinning::DualQuaternion,
-    )?;
-    Ok(crate::tet::TetMesh {
-        nodes,
-        tets: tet.tets,
-    })
+    VolumeRig::new(&template, &prepared, tet.nodes)
 }
 
 #[cfg(test)]
