@@ -1,11 +1,15 @@
 //! Posing the 18,514-vertex / 37,024-face skin (issue 7's speed goal: at least 2,000 poses per
 //! second on one core with linear blend skinning): forward kinematics plus skinning per pose,
 //! into a reused buffer as grasp search does; dual-quaternion skinning for comparison; and the
-//! one-off bone heat weights.
+//! one-off bone heat weights; and a baked pose with the segment-volume correction (DQS of skin
+//! and the 157k-tet mesh's nodes, Newton on the segment volumes, boundary placement).
 
 use criterion::{criterion_group, criterion_main, Criterion};
 use ergohand::anatomy::Side;
-use ergohand::pose::{bone_heat_weights, named_pose, HeatOptions, IndividualHand, WeightMethod};
+use ergohand::pose::{
+    bone_heat_weights, named_pose, HeatOptions, IndividualHand, VolumeOptions, VolumeRig,
+    WeightMethod,
+};
 use ergohand::skeleton::forward_kinematics::link_transforms;
 use ergohand::template::load_template;
 use std::hint::black_box;
@@ -40,6 +44,16 @@ fn pose_bench(c: &mut Criterion) {
     g.bench_function("bone_heat_weights_18514_vertices", |b| {
         b.iter(|| {
             bone_heat_weights(black_box(&h.skin), &h.skeleton, &HeatOptions::default()).unwrap()
+        })
+    });
+    let prepared = ergohand::tet::TemplateTet::prepare(&t, None).unwrap();
+    let rig = VolumeRig::new(&t, &prepared, prepared.tet.nodes.clone()).unwrap();
+    g.bench_function("fist_dqs_volume_corrected_skin_and_tet", |b| {
+        b.iter(|| {
+            rig.pose(&h, black_box(&pose), true, &VolumeOptions::default())
+                .unwrap()
+                .correction
+                .iterations
         })
     });
     g.finish();
