@@ -7,24 +7,25 @@ use crate::geometry::{Point, TriMesh};
 use crate::template::{dominant_links, LinkWeights};
 use std::collections::HashMap;
 
+/// The link a mesh element belongs to: the largest entry of the sum of its `corners`' weights;
+/// a tie goes to the lower link index.
+fn dominant_of(corners: &[usize], weights: &LinkWeights) -> usize {
+    let mut acc = [0.0; 17];
+    for &v in corners {
+        for &(l, w) in &weights[v] {
+            if l < acc.len() {
+                acc[l] += w;
+            }
+        }
+    }
+    (0..acc.len())
+        .max_by(|&a, &b| acc[a].total_cmp(&acc[b]).then(b.cmp(&a)))
+        .unwrap_or(0)
+}
+
 /// The link each face belongs to: the largest entry of the sum of its corners' weights.
 pub fn face_links(mesh: &TriMesh, weights: &LinkWeights) -> Vec<usize> {
-    mesh.faces
-        .iter()
-        .map(|f| {
-            let mut acc = [0.0; 17];
-            for &v in f {
-                for &(l, w) in &weights[v] {
-                    if l < acc.len() {
-                        acc[l] += w;
-                    }
-                }
-            }
-            (0..acc.len())
-                .max_by(|&a, &b| acc[a].total_cmp(&acc[b]).then(b.cmp(&a)))
-                .unwrap_or(0)
-        })
-        .collect()
+    mesh.faces.iter().map(|f| dominant_of(f, weights)).collect()
 }
 
 /// The digit a link belongs to for penetration checks: the phalanges of each digit (the thumb
@@ -168,21 +169,7 @@ pub fn finger_penetration(
 /// [`super::tet_node_weights`]); a tie goes to the lower link index. A segment is then a fixed set of tetrahedra, i.e. a fixed
 /// piece of tissue, whatever the pose does to it.
 pub fn tet_segments(tets: &[[usize; 4]], node_weights: &LinkWeights) -> Vec<usize> {
-    tets.iter()
-        .map(|q| {
-            let mut acc = [0.0; 17];
-            for &n in q {
-                for &(l, w) in &node_weights[n] {
-                    if l < acc.len() {
-                        acc[l] += w;
-                    }
-                }
-            }
-            (0..acc.len())
-                .max_by(|&a, &b| acc[a].total_cmp(&acc[b]).then(b.cmp(&a)))
-                .unwrap_or(0)
-        })
-        .collect()
+    tets.iter().map(|q| dominant_of(q, node_weights)).collect()
 }
 
 /// Volume of each segment of a tetrahedral mesh with nodes `nodes`: the sum of the signed
@@ -229,8 +216,8 @@ mod tests {
     use crate::template::load_template;
     use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 
-    /// Two unit cubes side by side, each cut into the six tetrahedra around its diagonal
-    /// (Kuhn), the nodes at x = 0 and 1 weighted to link 1 and those at x = 2 to link 2.
+    /// Two unit cubes side by side, each cut into the six Kuhn tetrahedra, the nodes at x = 0
+    /// and 1 weighted to link 1 and those at x = 2 to link 2.
     fn two_cubes() -> (Vec<Point>, Vec<[usize; 4]>, LinkWeights) {
         let mut nodes = Vec::new();
         for x in 0..3 {
@@ -240,31 +227,13 @@ mod tests {
                 }
             }
         }
-        let id = |x: usize, y: usize, z: usize| x * 4 + y * 2 + z;
-        let mut tets = Vec::new();
-        for x in 0..2 {
-            let c = |d: [usize; 3]| id(x + d[0], d[1], d[2]);
-            for perm in [
-                [0, 1, 2],
-                [0, 2, 1],
-                [1, 0, 2],
-                [1, 2, 0],
-                [2, 0, 1],
-                [2, 1, 0],
-            ] {
-                let mut d = [0; 3];
-                let mut path = vec![c(d)];
-                for k in perm {
-                    d[k] = 1;
-                    path.push(c(d));
-                }
-                // Odd permutations give the other orientation: swap two corners.
-                let [a, b, c, d] = [path[0], path[1], path[2], path[3]];
-                let v =
-                    crate::tet::mesh::tet_signed_volume(&nodes[a], &nodes[b], &nodes[c], &nodes[d]);
-                tets.push(if v > 0.0 { [a, b, c, d] } else { [a, b, d, c] });
-            }
-        }
+        // Cube corner c has bit 0 for x, bit 1 for y, bit 2 for z.
+        let id = |x: usize, c: u8| {
+            (x + (c & 1) as usize) * 4 + ((c >> 1) & 1) as usize * 2 + ((c >> 2) & 1) as usize
+        };
+        let tets = (0..2)
+            .flat_map(|x| crate::synth::voxel_scan::kuhn_tetrahedra().map(|t| t.map(|c| id(x, c))))
+            .collect();
         let weights = nodes
             .iter()
             .map(|p| vec![(if p.x < 1.5 { 1 } else { 2 }, 1.0)])
@@ -273,7 +242,7 @@ mod tests {
     }
 
     /// Segment volumes are the volumes of their tetrahedra (each Kuhn tetrahedron 1/6, all
-    /// oriented positively). In the second cube a tetrahedron's path from (1,0,0) to (2,1,1)
+    /// oriented positively). In the second cube a tetrahedron's chain from (1,0,0) to (2,1,1)
     /// steps in x first, second or third: only the two that step in x first have more nodes at
     /// x = 2, and a tie goes to the lower link, so link 1 has 6 + 4 tetrahedra (10/6) and link 2
     /// has 2 (2/6). A rigid motion keeps the volumes, a uniform scaling by `s` multiplies them

@@ -31,6 +31,28 @@ fn simulated_hand(seed: u64, method: WeightMethod) -> IndividualHand {
     reconstructed_hand(&s, method)
 }
 
+/// A `typical` simulated subject with 30-s trials, and its true hand (true skin and skeleton,
+/// template weights).
+fn subject_and_true_hand(
+    seed: u64,
+    t: &TemplateHand,
+) -> (crate::synth::SyntheticSubject, IndividualHand) {
+    let s = simulate(&SynthOptions {
+        duration_s: Some(30.0),
+        voxel_mm: 2.0,
+        ..SynthOptions::new(seed, Preset::Typical)
+    })
+    .unwrap();
+    let truth = IndividualHand::from_skin(
+        t,
+        s.true_skin.clone(),
+        s.true_skeleton.clone(),
+        WeightMethod::Template,
+    )
+    .unwrap();
+    (s, truth)
+}
+
 /// The hand `reconstruct` makes of a simulated subject: link model from its trials, skin fitted
 /// to its reference trial, section 3.6's centres.
 fn reconstructed_hand(s: &crate::synth::SyntheticSubject, method: WeightMethod) -> IndividualHand {
@@ -214,19 +236,7 @@ fn fist_quality_figures() {
     }
     // Seed 72's true hand and the hand reconstructed from its 30-s trials (the 3-s trials of
     // `simulated_hand` give axes tilted enough to fold a fist's fingers through themselves).
-    let s = simulate(&SynthOptions {
-        duration_s: Some(30.0),
-        voxel_mm: 2.0,
-        ..SynthOptions::new(72, Preset::Typical)
-    })
-    .unwrap();
-    let truth = IndividualHand::from_skin(
-        &t,
-        s.true_skin.clone(),
-        s.true_skeleton.clone(),
-        WeightMethod::Template,
-    )
-    .unwrap();
+    let (s, truth) = subject_and_true_hand(72, &t);
     hands.push(("true subject", WeightMethod::Template, truth));
     hands.push((
         "reconstructed subject",
@@ -563,19 +573,7 @@ fn fist_contacts_resolved_on_individual_hands() {
     let t = load_template(Side::Right).unwrap();
     let opts = crate::pose::ResolveOptions::default();
     for seed in [2u64, 72] {
-        let s = simulate(&SynthOptions {
-            duration_s: Some(30.0),
-            voxel_mm: 2.0,
-            ..SynthOptions::new(seed, Preset::Typical)
-        })
-        .unwrap();
-        let truth = IndividualHand::from_skin(
-            &t,
-            s.true_skin.clone(),
-            s.true_skeleton.clone(),
-            WeightMethod::Template,
-        )
-        .unwrap();
+        let (s, truth) = subject_and_true_hand(seed, &t);
         let recon = reconstructed_hand(&s, WeightMethod::Template);
         for (who, h) in [("true", &truth), ("reconstructed", &recon)] {
             for sk in [Skinning::DualQuaternion, Skinning::Linear] {

@@ -536,7 +536,7 @@ enum TetCase {
 /// face of the cube along its diagonal from its lowest to its highest corner, so neighbouring
 /// cubes agree and the whole grid is triangulated (Kuhn 1960, "Some combinatorial lemmas in
 /// topology").
-fn kuhn_tetrahedra() -> [[u8; 4]; 6] {
+pub(crate) fn kuhn_tetrahedra() -> [[u8; 4]; 6] {
     let axes = [
         [0, 1, 2],
         [0, 2, 1],
