@@ -787,6 +787,9 @@ mod tests {
         out
     }
 
+    /// A marker's placement and soft-tissue slide.
+    type Plate = (Point, Vec<(Vec3, Joint, f64)>);
+
     /// A repeated recording keeps the session's plates, soft-tissue slide, static trial and
     /// truth and records every motion anew; a new session re-attaches the plates.
     #[test]
@@ -802,7 +805,7 @@ mod tests {
         };
         let (a, b, c, other) = (take(0, 0), take(0, 1), take(0, 2), take(1, 1));
         for key in ["wrist", "thumb", "index", "little"] {
-            let plates = |s: &SyntheticSubject| -> Vec<(Point, Vec<(Vec3, Joint, f64)>)> {
+            let plates = |s: &SyntheticSubject| -> Vec<Plate> {
                 s.markers[key]
                     .iter()
                     .map(|d| (d.position, d.sta.clone()))
