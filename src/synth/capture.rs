@@ -2,7 +2,7 @@
 //! errors of a real session: marker noise, soft-tissue artefact, occlusion gaps and a hand that
 //! is not clamped.
 
-use super::motion::{trial_angles, Trial, SEATED_S};
+use super::motion::{trial_angles_varied, MotionVariation, Trial, SEATED_S};
 use crate::anatomy::{Joint, Link};
 use crate::geometry::{Point, TriMesh, Vec3};
 use crate::rng::Rng;
@@ -172,7 +172,8 @@ pub fn gap_mask(rng: &mut Rng, n: usize, rate: f64, fraction: f64) -> Vec<bool> 
     visible
 }
 
-/// Simulate one calibration trial: `n` frames at `rate` Hz of the markers in `defs`.
+/// Simulate one calibration trial: `n` frames at `rate` Hz of the markers in `defs`, the joints
+/// moving as the protocol ([`super::motion`]) departed from by `var`.
 /// `seat` is the rigid offset of the hand at the trial's reference frame (re-seated for every
 /// trial); `to_lab` maps the reference frame to the lab. Returns positions in mm per marker per
 /// frame (`None` where occluded) and, per frame, the true link transforms (for tests).
@@ -184,6 +185,7 @@ pub fn simulate_trial(
     n: usize,
     rate: f64,
     err: &ErrorModel,
+    var: &MotionVariation,
     seat: &Isometry3<f64>,
     to_lab: &Isometry3<f64>,
     rng: &mut Rng,
@@ -202,7 +204,7 @@ pub fn simulate_trial(
         // Frame index drives time, the masks and the outputs alike.
         let t = f as f64 / rate;
         let mut pose = Pose::zero();
-        let angles = trial_angles(trial, t, duration, err.rom);
+        let angles = trial_angles_varied(trial, t, duration, err.rom, var);
         for &(j, a) in &angles {
             pose = pose.with_deg(j, a);
         }

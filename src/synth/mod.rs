@@ -29,7 +29,7 @@ use crate::skeleton::{Pose, Skeleton};
 use crate::template::{load_template, TemplateHand};
 use anthropometry::{shape_hand, ShapeParams};
 use capture::{plate_markers, simulate_trial, ErrorModel, MarkerDef};
-use motion::Trial;
+use motion::{MotionVariation, Trial};
 use nalgebra::{Isometry3, Matrix3, Rotation3, Translation3, UnitQuaternion};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
@@ -175,6 +175,19 @@ pub struct SynthOptions {
     /// plates, noise, artefact and gaps (0 = the first session). For repeatability studies.
     #[serde(default)]
     pub repeat: u32,
+    /// Repeat number of the calibration trials within that session: the plates stay where they
+    /// are (same placement, same soft-tissue slide, same static reference trial) and every
+    /// calibration motion is recorded again: a new realisation of the motion
+    /// ([`motion::MotionVariation`]), a new seating and drift of the hand, new noise and gaps.
+    /// 0 = the session's first recording, which follows the protocol's nominal motion; the seed
+    /// paper's repeatability measure (section 4: calibration motions measured five times) is over
+    /// `trial_repeat` 1-5. Not written to `truth.json` when 0, so older truths stay identical.
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub trial_repeat: u32,
+}
+
+fn is_zero(v: &u32) -> bool {
+    *v == 0
 }
 
 fn default_side() -> Side {
@@ -202,6 +215,7 @@ impl SynthOptions {
             voxel_mm: default_voxel(),
             marker_offset_mm: default_offset(),
             repeat: 0,
+            trial_repeat: 0,
         }
     }
 }
@@ -454,12 +468,23 @@ pub fn simulate(opts: &SynthOptions) -> Result<SyntheticSubject> {
             }
         }
         let n = (duration * FRAME_RATE).round() as usize;
+        // A repeated recording of the trial keeps the plates drawn above and draws everything
+        // of the recording itself (motion, seating, drift, noise, gaps) from its own stream;
+        // the first recording continues the trial's stream, as it always has.
+        let mut take_rng;
+        let (rng, var) = if opts.trial_repeat == 0 {
+            (&mut trng, MotionVariation::NOMINAL)
+        } else {
+            take_rng = trng.fork(&format!("take-{}", opts.trial_repeat));
+            let var = MotionVariation::draw(&mut take_rng.fork("motion"));
+            (&mut take_rng, var)
+        };
         let seat = if opts.preset == Preset::Clean {
             ident
         } else {
-            let q = UnitQuaternion::from_scaled_axis(trng.gauss3(1f64.to_radians()));
+            let q = UnitQuaternion::from_scaled_axis(rng.gauss3(1f64.to_radians()));
             let c = wrist.centre.coords;
-            Isometry3::from_parts(Translation3::from(c - q * c + trng.gauss3(1.5)), q)
+            Isometry3::from_parts(Translation3::from(c - q * c + rng.gauss3(1.5)), q)
         };
         let positions = simulate_trial(
             *trial,
@@ -468,9 +493,10 @@ pub fn simulate(opts: &SynthOptions) -> Result<SyntheticSubject> {
             n,
             FRAME_RATE,
             &err,
+            &var,
             &seat,
             &ident,
-            &mut trng,
+            rng,
         );
         trials.insert(
             key.clone(),
@@ -759,6 +785,49 @@ mod tests {
         }
         out.sort();
         out
+    }
+
+    /// A marker's placement and soft-tissue slide.
+    type Plate = (Point, Vec<(Vec3, Joint, f64)>);
+
+    /// A repeated recording keeps the session's plates, soft-tissue slide, static trial and
+    /// truth and records every motion anew; a new session re-attaches the plates.
+    #[test]
+    fn trial_repeats_keep_the_plates_and_redo_the_recording() {
+        let base = short(23, Preset::Typical);
+        let take = |repeat: u32, trial_repeat: u32| {
+            simulate(&SynthOptions {
+                repeat,
+                trial_repeat,
+                ..base.clone()
+            })
+            .unwrap()
+        };
+        let (a, b, c, other) = (take(0, 0), take(0, 1), take(0, 2), take(1, 1));
+        for key in ["wrist", "thumb", "index", "little"] {
+            let plates = |s: &SyntheticSubject| -> Vec<Plate> {
+                s.markers[key]
+                    .iter()
+                    .map(|d| (d.position, d.sta.clone()))
+                    .collect()
+            };
+            assert!(
+                plates(&a) == plates(&b) && plates(&b) == plates(&c),
+                "{key}"
+            );
+            assert!(plates(&b) != plates(&other), "{key}");
+            let p = |s: &SyntheticSubject| s.trials[key].positions.clone();
+            assert!(p(&a) != p(&b) && p(&b) != p(&c), "{key}");
+        }
+        assert_eq!(
+            a.trials["reference"].positions,
+            c.trials["reference"].positions
+        );
+        assert_eq!(a.truth.joints, c.truth.joints);
+        // The first recording's truth.json is what it was before trial repeats existed.
+        let json = |s: &SyntheticSubject| serde_json::to_string(&s.truth).unwrap();
+        assert!(!json(&a).contains("trial_repeat"));
+        assert!(json(&c).contains("\"trial_repeat\":2"));
     }
 
     #[test]

@@ -6,6 +6,7 @@
 //! Angles are degrees relative to the subject's reference posture, as functions of time.
 
 use crate::anatomy::{Finger, Joint};
+use crate::rng::Rng;
 
 /// Which calibration trial.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -26,9 +27,59 @@ fn ramp(t: f64) -> f64 {
     x * x * (3.0 - 2.0 * x)
 }
 
+/// How one recording of a calibration motion departs from the protocol's nominal motion: a
+/// subject who repeats a voluntary motion reaches somewhat different amplitudes, flexes the PIP
+/// and DIP in a somewhat different ratio and keeps a somewhat different pace. Every factor is 1
+/// for [`MotionVariation::NOMINAL`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct MotionVariation {
+    /// Amplitude factors of the proximal joint's two directions (flexion, abduction; wrist:
+    /// flexion, deviation).
+    pub proximal: [f64; 2],
+    /// Amplitude factors of the two distal joints' flexion (PIP and DIP; thumb MCP and IP).
+    pub distal: [f64; 2],
+    /// Period factors of the proximal circumduction and of the distal flexion.
+    pub period: [f64; 2],
+}
+
+impl MotionVariation {
+    /// The protocol's motion exactly.
+    pub const NOMINAL: MotionVariation = MotionVariation {
+        proximal: [1.0; 2],
+        distal: [1.0; 2],
+        period: [1.0; 2],
+    };
+
+    /// Draw one recording's variation: every amplitude 85-105 % of the protocol's (subjects
+    /// aim at their full range and mostly fall a little short of it), every period 85-115 %.
+    /// An assumption of the simulator, not a measured distribution.
+    pub fn draw(rng: &mut Rng) -> MotionVariation {
+        let mut amp = || rng.range(0.85, 1.05);
+        let (proximal, distal) = ([amp(), amp()], [amp(), amp()]);
+        MotionVariation {
+            proximal,
+            distal,
+            period: [rng.range(0.85, 1.15), rng.range(0.85, 1.15)],
+        }
+    }
+}
+
 /// Joint angles (degrees; `[flexion, abduction, axial]`) at time `t` seconds of a trial of
-/// length `duration` s; `rom` scales every range of motion (1 = typical, 0.5 = small).
+/// length `duration` s; `rom` scales every range of motion (1 = typical, 0.5 = small). The
+/// protocol's nominal motion ([`trial_angles_varied`] with [`MotionVariation::NOMINAL`]).
 pub fn trial_angles(trial: Trial, t: f64, duration: f64, rom: f64) -> Vec<(Joint, [f64; 3])> {
+    trial_angles_varied(trial, t, duration, rom, &MotionVariation::NOMINAL)
+}
+
+/// [`trial_angles`] of one recording whose motion departs from the protocol by `var`. The
+/// factors multiply amplitudes and periods, so `NOMINAL` gives exactly the nominal angles.
+pub fn trial_angles_varied(
+    trial: Trial,
+    t: f64,
+    duration: f64,
+    rom: f64,
+    var: &MotionVariation,
+) -> Vec<(Joint, [f64; 3])> {
     let moving = (t - SEATED_S).max(0.0);
     let span = (duration - SEATED_S).max(1.0);
     // First half: proximal circumduction; second half: distal flexion.
@@ -38,13 +89,14 @@ pub fn trial_angles(trial: Trial, t: f64, duration: f64, rom: f64) -> Vec<(Joint
         Trial::Wrist => {
             // Wrist circumduction: flexion/extension ±60°, radial/ulnar deviation ±20°
             // (centred slightly ulnar, as wrists are), period 5 s.
-            let w = tau / 5.0;
+            let w = tau / (5.0 * var.period[0]);
             let e = ramp(moving) * rom;
+            let [fx, dv] = var.proximal;
             vec![(
                 Joint::Wrist,
                 [
-                    e * 60.0 * (w * moving).sin(),
-                    e * (20.0 * (w * moving).cos() - 5.0),
+                    e * fx * 60.0 * (w * moving).sin(),
+                    e * dv * (20.0 * (w * moving).cos() - 5.0),
                     0.0,
                 ],
             )]
@@ -59,7 +111,7 @@ pub fn trial_angles(trial: Trial, t: f64, duration: f64, rom: f64) -> Vec<(Joint
             // Proximal circumduction: a loop in (flexion, abduction) starting at rest. Fingers:
             // MCP flexion 0-80°, abduction ±20°, period 4 s. Thumb CMC: flexion 0-40°, palmar
             // abduction 0-50°.
-            let w = tau / 4.0;
+            let w = tau / (4.0 * var.period[0]);
             let back = if moving < half {
                 1.0
             } else {
@@ -67,18 +119,23 @@ pub fn trial_angles(trial: Trial, t: f64, duration: f64, rom: f64) -> Vec<(Joint
             };
             let e = ramp(prox) * rom * back;
             let phase = w * prox;
+            let [fx, ab] = var.proximal;
             let proximal = if f == Finger::Thumb {
                 [
-                    e * 20.0 * (1.0 - phase.cos()),
-                    e * 25.0 * (1.0 + phase.sin()),
+                    e * fx * 20.0 * (1.0 - phase.cos()),
+                    e * ab * 25.0 * (1.0 + phase.sin()),
                     0.0,
                 ]
             } else {
-                [e * 40.0 * (1.0 - phase.cos()), e * 20.0 * phase.sin(), 0.0]
+                [
+                    e * fx * 40.0 * (1.0 - phase.cos()),
+                    e * ab * 20.0 * phase.sin(),
+                    0.0,
+                ]
             };
             // Distal flexion together, period 3 s: PIP 0-100° with DIP 0-70° (thumb: MCP 0-50°,
             // IP 0-70°).
-            let wd = tau / 3.0;
+            let wd = tau / (3.0 * var.period[1]);
             let ed = ramp(dist) * rom;
             let s = 0.5 * (1.0 - (wd * dist).cos());
             let (a1, a2) = if f == Finger::Thumb {
@@ -86,10 +143,11 @@ pub fn trial_angles(trial: Trial, t: f64, duration: f64, rom: f64) -> Vec<(Joint
             } else {
                 (100.0, 70.0)
             };
+            let [d1, d2] = var.distal;
             vec![
                 (j0, proximal),
-                (j1, [ed * a1 * s, 0.0, 0.0]),
-                (j2, [ed * a2 * s, 0.0, 0.0]),
+                (j1, [ed * d1 * a1 * s, 0.0, 0.0]),
+                (j2, [ed * d2 * a2 * s, 0.0, 0.0]),
             ]
         }
     }
@@ -126,6 +184,50 @@ mod tests {
                 Trial::Wrist => assert!(maxes[0][0] > 55.0),
                 _ => assert!(maxes[1][0] > 45.0),
             }
+        }
+    }
+
+    /// A repeated recording reaches the protocol's ranges times its factors, and the drawn
+    /// factors stay in their documented ranges and differ from draw to draw.
+    #[test]
+    fn a_repeated_recording_scales_the_ranges() {
+        let trial = Trial::Finger(Finger::Index);
+        let maxes = |var: &MotionVariation| {
+            let mut m = [[0.0f64; 2]; 3];
+            for k in 0..6000 {
+                let a = trial_angles_varied(trial, k as f64 / 100.0, 60.0, 1.0, var);
+                for (i, (_, a)) in a.into_iter().enumerate() {
+                    m[i][0] = m[i][0].max(a[0].abs());
+                    m[i][1] = m[i][1].max(a[1].abs());
+                }
+            }
+            m
+        };
+        let var = MotionVariation {
+            proximal: [0.9, 1.05],
+            distal: [0.85, 1.0],
+            period: [1.1, 0.9],
+        };
+        let (n, v) = (maxes(&MotionVariation::NOMINAL), maxes(&var));
+        for (got, want) in [
+            (v[0][0] / n[0][0], 0.9),
+            (v[0][1] / n[0][1], 1.05),
+            (v[1][0] / n[1][0], 0.85),
+            (v[2][0] / n[2][0], 1.0),
+        ] {
+            assert!((got - want).abs() < 0.01, "{got} vs {want}");
+        }
+        let mut rng = Rng::new(5);
+        let (d1, d2) = (
+            MotionVariation::draw(&mut rng),
+            MotionVariation::draw(&mut rng),
+        );
+        assert_ne!(d1, d2);
+        for d in [d1, d2] {
+            for f in d.proximal.iter().chain(&d.distal) {
+                assert!((0.85..=1.05).contains(f), "{d:?}");
+            }
+            assert!(d.period.iter().all(|f| (0.85..=1.15).contains(f)), "{d:?}");
         }
     }
 
