@@ -336,7 +336,7 @@ pub fn link_length_table(v: &SubjectValidation) -> Table {
             Cell::flagged(signed(m - tr, 2), (m - tr).abs() > FLAG_CENTRE_MM),
         ]);
     }
-    t.note = "Repeatability (mean and SD over repeated sessions of one hand) needs repeats: ergohand validate --suite reports it for the suite's repeated subjects. The seed paper: index MCP–PIP 45.54 ± 0.52 mm, PIP–DIP 24.60 ± 0.92 mm over five sessions.".into();
+    t.note = "Repeatability (mean and SD over repeated sessions of one hand) needs repeats: ergohand validate --suite reports it for the suite's repeated subjects. The seed paper: index MCP–PIP 45.54 ± 0.52 mm, PIP–DIP 24.60 ± 0.92 mm over five recordings of the calibration motions (trial repeats: reports/link-repeatability.md).".into();
     t
 }
 

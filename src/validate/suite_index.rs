@@ -279,7 +279,7 @@ pub fn suite_index_html(rows: &[SuiteRow], dir: &Path) -> String {
     }
     for g in &groups {
         b.push_str(&format!(
-            "<p class=\"lead\">{} sessions of one simulated hand ({}): new plates, noise, soft-tissue slide and gaps each time. The seed paper, five sessions of a real index finger: MCP–PIP 45.54 ± 0.52 mm, PIP–DIP 24.60 ± 0.92 mm.</p>",
+            "<p class=\"lead\">{} sessions of one simulated hand ({}): new plates, noise, soft-tissue slide and gaps each time. The seed paper, the calibration motions of a real index finger recorded five times: MCP–PIP 45.54 ± 0.52 mm, PIP–DIP 24.60 ± 0.92 mm.</p>",
             g.subjects.len(),
             esc(&g.subjects.join(", "))
         ));
