@@ -38,6 +38,9 @@ pub struct GraspPlan {
     /// as in a power grasp); `false` closes the digit's joints together (the fingertip leads,
     /// as in precision grasps).
     pub wrap: bool,
+    /// Longest wrist travel (mm) along the grasp frame's palmar axis before closing, stopping
+    /// when the palm touches ([`approach_to_contact`]); 0: the fingers close from the approach.
+    pub approach_mm: f64,
 }
 
 /// The plan of a grasp type (degrees chosen within the anatomical limits; the wrist stays put).
@@ -56,8 +59,11 @@ pub fn grasp_plan(kind: GraspType) -> GraspPlan {
         [[f64; 3]; 3],
     );
     let (thumb_pre, thumb_closed, closing, f_pre, f_closed): Plan = match kind {
+        // The thumb waits extended and radially abducted in the plane of the palm (the CMC's
+        // limits) while the palm comes in to the part, then wraps it: preshaped at [-20, 0, 0]
+        // its proximal phalanx stood out of the palm and stopped the approach 10 mm short.
         GraspType::Power => (
-            [[-20.0, 0.0, 0.0], [0.0; 3], [0.0; 3]],
+            [[-25.0, -15.0, 0.0], [0.0; 3], [0.0; 3]],
             [[40.0, 55.0, 20.0], [55.0, 0.0, 0.0], [75.0, 0.0, 0.0]],
             fingers.to_vec(),
             [[0.0; 3]; 3],
@@ -113,6 +119,9 @@ pub fn grasp_plan(kind: GraspType) -> GraspPlan {
         closed: clamp(closed),
         active,
         wrap: kind == GraspType::Power,
+        // A power grasp holds the part against the palm (Cutkosky 1989): the wrist comes in
+        // until the palm touches. Precision grasps hold it with the fingertips, off the palm.
+        approach_mm: if kind == GraspType::Power { 40.0 } else { 0.0 },
     }
 }
 
@@ -150,6 +159,11 @@ pub fn grasp_frame(hand: &dyn PosableHand) -> Isometry3<f64> {
     )
 }
 
+/// Default skin compression of the [`squeeze`], mm: the finger pulp is 3 to 5 mm of soft
+/// tissue over the bone and a firm grip compresses it by about 1 to 2 mm (Serina, Mote &
+/// Rempel 1997, fingertip force-displacement: about 1 N at 1 mm, several N at 2 mm).
+pub const SQUEEZE_MM: f64 = 1.5;
+
 /// Settings of [`autograsp`].
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct AutograspOptions {
@@ -166,6 +180,8 @@ pub struct AutograspOptions {
     /// How much further (mm) a closing phalanx may enter another finger's core than it was
     /// at the start of its closing (skin is soft, the cores are conservative).
     pub finger_allowance_mm: f64,
+    /// Skin compression of the [`squeeze`] after contact, mm.
+    pub squeeze_mm: f64,
 }
 
 impl Default for AutograspOptions {
@@ -177,6 +193,7 @@ impl Default for AutograspOptions {
             contact: ContactOptions::default(),
             stride: 1,
             finger_allowance_mm: 1.0,
+            squeeze_mm: SQUEEZE_MM,
         }
     }
 }
@@ -194,6 +211,8 @@ pub struct Autograsp {
     pub collisions: Vec<FingerCollision>,
     /// Posture evaluations made.
     pub evaluations: usize,
+    /// Wrist travel of the approach to contact ([`approach_to_contact`]), mm.
+    pub approach_mm: f64,
 }
 
 /// Pose of the forearm that puts the hand's grasp frame at `approach` in the part's frame,
@@ -331,6 +350,13 @@ pub fn autograsp(
             Link::ALL[l].name()
         )));
     }
+    let (root, approach_mm) = approach_to_contact(hand, part, plan, root, opts);
+    if approach_mm > 0.0 {
+        let tr = link_transforms(sk, &pose_at(plan, &t, root));
+        for (l, slot) in touched.iter_mut().enumerate() {
+            *slot = link_state(hand, part, l, &tr, opts, &mut buf).touches;
+        }
+    }
     let mut collisions = Vec::new();
     for f in Finger::ALL {
         let joints = f.joints();
@@ -448,7 +474,189 @@ pub fn autograsp(
         untouched,
         collisions,
         evaluations,
+        approach_mm,
     })
+}
+
+/// GraspIt's approach to contact (Miller & Allen 2004: the hand moves along its approach
+/// direction until it touches the object, then the fingers close): the hand in the plan's
+/// preshape moves from `root` along the palmar axis of its [`grasp_frame`] by at most
+/// [`GraspPlan::approach_mm`], in steps of 2 mm halved down to 1/16 mm before any step that
+/// would take a link deeper into the part than `max_depth_mm` (or deeper than it was at
+/// `root`), and stops as soon as the palm touches. Without it the palm stays where the approach
+/// put it and a power grasp wraps the fingers round the part with the palm off it: the
+/// thenar and the fingers then push the part away from the palm and nothing opposes them.
+/// Returns the new root and the distance travelled, mm.
+pub fn approach_to_contact(
+    hand: &dyn PosableHand,
+    part: &PartShape,
+    plan: &GraspPlan,
+    root: Isometry3<f64>,
+    opts: &AutograspOptions,
+) -> (Isometry3<f64>, f64) {
+    if plan.approach_mm <= 0.0 {
+        return (root, 0.0);
+    }
+    let sk = hand.skeleton();
+    let axis = (root * grasp_frame(hand)).rotation * Vec3::z();
+    let mut buf = Vec::new();
+    let mut states = |s: f64| -> [LinkState; 17] {
+        let r = Translation3::from(axis * s) * root;
+        let tr = link_transforms(sk, &pose_at(plan, &[0.0; 16], r));
+        std::array::from_fn(|l| link_state(hand, part, l, &tr, opts, &mut buf))
+    };
+    let palm = Link::Palm.index();
+    let start = states(0.0);
+    if start[palm].touches {
+        return (root, 0.0);
+    }
+    let (mut s, mut step) = (0.0, 2.0);
+    while s < plan.approach_mm && step >= 1.0 / 16.0 {
+        let s2 = (s + step).min(plan.approach_mm);
+        let st = states(s2);
+        if st
+            .iter()
+            .zip(&start)
+            .any(|(a, b)| a.depth > opts.max_depth_mm.max(b.depth + 1e-6))
+        {
+            step *= 0.5;
+            continue;
+        }
+        s = s2;
+        if st[palm].touches {
+            break;
+        }
+    }
+    (Translation3::from(axis * s) * root, s)
+}
+
+/// What [`squeeze`] did.
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct Squeeze {
+    /// Skin compression aimed at, mm ([`AutograspOptions::squeeze_mm`]).
+    pub target_mm: f64,
+    /// Per link of a squeezed digit touching the part: its deepest skin vertex inside the part
+    /// after the squeeze, mm.
+    pub depth_mm: std::collections::BTreeMap<String, f64>,
+    /// Joints that moved, with the closing parameter gained.
+    pub closed_further: std::collections::BTreeMap<String, f64>,
+}
+
+/// The squeeze after the autograsp: the joints of each digit that touches the part keep
+/// closing until its skin is compressed by [`AutograspOptions::squeeze_mm`].
+///
+/// GraspIt closes to contact and then applies joint torques in its dynamics engine (Miller &
+/// Allen 2004, "Dynamics"); the contact force then comes from the torque. Our hand is kinematic
+/// in rapier, so the kinematic equivalent is used: the finger pulp is a soft layer (the soft
+/// finger contact of Mason & Salisbury 1985 and Ciocarlie, Lackner & Allen 2007, whose normal
+/// force grows with the compression of the pad), and each touching digit is closed a little
+/// further until its skin sits `squeeze_mm` inside the part. rapier's soft contact turns that
+/// overlap into the normal force that lets friction hold the part ([`super::hold`]); a grasp
+/// that only touches has no normal force and holds nothing.
+///
+/// Per digit, in rounds, each active joint with a touching link at or distal to it advances by
+/// `step` in `t` (halved down to `min_step`, then it stops) as long as no link of the digit
+/// goes deeper than `squeeze_mm` (or than it already was), no phalanx enters another finger's
+/// core ([`Cores`]) beyond the autograsp's allowance, and `t ≤ 1`. Deterministic.
+pub fn squeeze(
+    hand: &dyn PosableHand,
+    part: &PartShape,
+    plan: &GraspPlan,
+    g: &Autograsp,
+    opts: &AutograspOptions,
+) -> (Pose, [f64; 16], Squeeze) {
+    let sk = hand.skeleton();
+    let cores = Cores::new(hand);
+    let root = g.pose.root;
+    let mut t = g.t;
+    let mut buf = Vec::new();
+    let mut report = Squeeze {
+        target_mm: opts.squeeze_mm,
+        depth_mm: Default::default(),
+        closed_further: Default::default(),
+    };
+    for f in Finger::ALL {
+        let joints = f.joints();
+        let dl = digit_links(f);
+        if !joints.iter().any(|j| plan.active[j.index()]) {
+            continue;
+        }
+        let tr = link_transforms(sk, &pose_at(plan, &t, root));
+        let posed_cores = cores.posed(&tr);
+        let mut baseline = [0.0; 3];
+        let mut st = [LinkState {
+            depth: f64::MIN,
+            touches: false,
+        }; 3];
+        for k in 0..3 {
+            st[k] = link_state(hand, part, dl[k].index(), &tr, opts, &mut buf);
+            if has_core(dl[k]) && !buf.is_empty() {
+                baseline[k] = cores.penetration(&posed_cores, f, &buf).0;
+            }
+        }
+        let start = st;
+        let mut moving: [bool; 3] = std::array::from_fn(|k| {
+            plan.active[joints[k].index()]
+                && t[joints[k].index()] < 1.0
+                && (k..3).any(|m| st[m].touches)
+        });
+        let mut dt = [opts.step; 3];
+        let mut guard = 0;
+        while moving.iter().any(|&m| m) && guard < 10_000 {
+            guard += 1;
+            for k in 0..3 {
+                if !moving[k] {
+                    continue;
+                }
+                let j = joints[k].index();
+                let mut t2 = t;
+                t2[j] = (t[j] + dt[k]).min(1.0);
+                let tr = link_transforms(sk, &pose_at(plan, &t2, root));
+                let posed_cores = cores.posed(&tr);
+                let mut next = st;
+                let mut refused = false;
+                for m in k..3 {
+                    next[m] = link_state(hand, part, dl[m].index(), &tr, opts, &mut buf);
+                    let deepest = opts.squeeze_mm.max(start[m].depth);
+                    if next[m].depth > deepest {
+                        refused = true;
+                    }
+                    if has_core(dl[m]) && !buf.is_empty() {
+                        let (d, _) = cores.penetration(&posed_cores, f, &buf);
+                        if d > baseline[m] + opts.finger_allowance_mm {
+                            refused = true;
+                        }
+                    }
+                }
+                if refused {
+                    if dt[k] > opts.min_step {
+                        dt[k] *= 0.5;
+                    } else {
+                        moving[k] = false;
+                    }
+                    continue;
+                }
+                t = t2;
+                st = next;
+                if t[j] >= 1.0 {
+                    moving[k] = false;
+                }
+            }
+        }
+        for k in 0..3 {
+            let j = joints[k];
+            let gained = t[j.index()] - g.t[j.index()];
+            if gained > 0.0 {
+                report.closed_further.insert(j.name().to_string(), gained);
+            }
+            if st[k].touches {
+                report
+                    .depth_mm
+                    .insert(dl[k].name().to_string(), st[k].depth.max(0.0));
+            }
+        }
+    }
+    (pose_at(plan, &t, root), t, report)
 }
 
 /// A candidate placement: the grasp frame looks along `-dir` at the part from just outside its

@@ -3,8 +3,11 @@
 //! a dynamic triangle mesh with its mass (inertia of its bounding box as a solid); gravity is
 //! applied along ±x, ±y, ±z of the world in turn, in a fresh world each time. The grasp holds when
 //! the part's centre of mass stays within 2 mm of where it started for 1 s in every direction
-//! (it starts where it settled in 0.1 s without gravity: the autograsp leaves the skin up to
-//! 0.8 mm inside the part, and the solver's push-out is not a drop).
+//! (it starts where it settled in 0.4 s without gravity: the squeeze after the autograsp
+//! ([`super::autograsp::squeeze`]) leaves the skin up to 1.5 mm inside the part, and the
+//! solver's push-out is not a drop). That overlap is what makes a grasp hold: rapier turns it
+//! into the contacts' normal force (critically damped contact springs of [`CONTACT_HZ`]), and
+//! friction bounded by it holds the part; a grasp that only touches holds nothing.
 //!
 //! rapier works in SI units: lengths are converted from mm to m at this boundary.
 
@@ -19,9 +22,12 @@ use serde::Serialize;
 /// Displacement over which the part counts as dropped, mm.
 pub const HOLD_LIMIT_MM: f64 = 2.0;
 
-/// Steps (1/240 s) without gravity before each trial, to let the solver resolve the initial
-/// overlap of skin and part.
-pub const SETTLE_STEPS: usize = 24;
+/// Steps (1/240 s, so 0.4 s) without gravity before each trial, to let the solver resolve
+/// the initial overlap of skin and part. The squeezed part needs this long to come to rest
+/// between the fingers (after 0.1 s the demo hand's bottle was still moving: it passed 2 mm
+/// within 0.2 s of the trial in two directions and stayed within 0.25 mm after a 0.4 s
+/// settle).
+pub const SETTLE_STEPS: usize = 96;
 
 /// One direction of gravity.
 #[derive(Clone, Debug, PartialEq, Serialize)]
@@ -51,6 +57,9 @@ fn v(p: &Point) -> Vector {
 
 /// rapier's length unit for hand-sized scenes, m (scales its contact tolerances).
 pub const LENGTH_UNIT_M: f64 = 0.05;
+
+/// Natural frequency of rapier's contact springs in the hold test, Hz (critically damped).
+pub const CONTACT_HZ: f64 = 60.0;
 
 /// Radius of the balls that stand for the skin in [`hold_test_hand`], mm.
 pub const SKIN_BALL_MM: f64 = 1.5;
@@ -86,6 +95,7 @@ pub fn hold_test_hand(
         if l == Link::Arm.index() {
             continue;
         }
+        let cell = BALL_CELL_MM;
         for &i in vs {
             let p = posed[i];
             let near = match part.probe(&p, BALL_BAND_MM) {
@@ -96,7 +106,6 @@ pub fn hold_test_hand(
             if !near {
                 continue;
             }
-            let cell = BALL_CELL_MM;
             let key = (
                 l,
                 (p.x / cell).floor() as i64,
@@ -231,6 +240,17 @@ fn run_trials(
             // Hand-sized bodies: rapier's tolerances are tuned for metre-sized ones (20 mm of
             // predictive contacts, 5 mm of slop), so its length unit is set to 5 cm.
             world.integration_parameters.length_unit = LENGTH_UNIT_M;
+            // Contacts as critically damped springs of 60 Hz (rapier's default, 30 Hz with a
+            // damping ratio of 10, is made for piles of bodies: so overdamped that a squeezed
+            // part creeps out of the grip at about 2 mm/s). The skin's compliance is the
+            // squeeze's overlap; the solver should hold that overlap, not add a softer second
+            // spring. 60 Hz is a quarter of the step rate, well inside what the soft
+            // constraints resolve in one step, and the push-out stays capped at rapier's
+            // corrective velocity (3 length units/s = 0.15 m/s), so an overlapping part is
+            // pushed to rest, never launched.
+            let soft = SpringCoefficients::new(CONTACT_HZ, 1.0);
+            world.integration_parameters.contact_softness = soft;
+            world.integration_parameters.static_contact_softness = soft;
             let hand = world.insert_body(RigidBodyBuilder::kinematic_position_based());
             for h in &hulls {
                 world.insert_collider(h.clone(), Some(hand));
@@ -280,15 +300,20 @@ mod tests {
     use super::*;
     use crate::geometry::Vec3;
 
-    fn cylinder() -> PartShape {
+    /// The 60 mm cylinder, 200 mm tall, base at z = 0, moved by `pose`.
+    fn cylinder_at(pose: &nalgebra::Isometry3<f64>) -> PartShape {
         let m = super::super::parts::mesh_sdf(
-            |p| (p.x.hypot(p.y) - 30.0).max(-p.z).max(p.z - 120.0),
+            |p| (p.x.hypot(p.y) - 30.0).max(-p.z).max(p.z - 200.0),
             Point::new(-30.0, -30.0, 0.0),
-            Point::new(30.0, 30.0, 120.0),
+            Point::new(30.0, 30.0, 200.0),
             3.0,
         )
         .unwrap();
-        PartShape::new(m).unwrap().0
+        PartShape::new(m.transformed(pose)).unwrap().0
+    }
+
+    fn cylinder() -> PartShape {
+        cylinder_at(&nalgebra::Isometry3::identity())
     }
 
     /// A pad: a box of points 20 x 20 x 10 mm whose inner face is at `r` from the axis,
@@ -324,6 +349,90 @@ mod tests {
         assert!(r.holds, "{r:?}");
         // One fingertip touching the side.
         let r = hold_test(&[pad(0.0, 29.9, 60.0)], &part, 0.3, 0.8).unwrap();
+        assert!(!r.holds, "{r:?}");
+    }
+
+    /// Issue 8's check with the hand: the template hand's power grasp of the 60 mm cylinder
+    /// (approach to contact, autograsp, squeeze) holds in all six directions, and the same
+    /// hand's index fingertip pressed as deep into the cylinder (the squeeze depth) with
+    /// nothing else touching does not: holding needs opposing contacts, not only pressure.
+    #[test]
+    fn hand_power_grasp_of_the_cylinder_holds_and_a_fingertip_touch_does_not() {
+        use crate::anatomy::{Finger, Joint, Side};
+        use crate::grasp::autograsp::{
+            autograsp, grasp_plan, root_for, squeeze, AutograspOptions, SQUEEZE_MM,
+        };
+        use crate::grasp::contact::{contacts, vertex_areas};
+        use crate::grasp::scene::GraspType;
+        use crate::grasp::SkinnedHand;
+        use crate::skeleton::forward_kinematics::link_transforms;
+        use crate::skeleton::Pose;
+        use nalgebra::{Isometry3, Translation3, UnitQuaternion};
+        let h = SkinnedHand::template(Side::Right).unwrap();
+        let (mass, mu) = (0.5, 0.5);
+        // The power grasp of scenes/bottle.toml.
+        let part = cylinder();
+        let approach = crate::grasp::scene::pose_from([-35.0, -42.0, 90.0], [-90.0, -90.0, 0.0]);
+        let plan = grasp_plan(GraspType::Power);
+        let opts = AutograspOptions::default();
+        let root = root_for(&h, &Isometry3::identity(), &approach);
+        let g = autograsp(&h, &part, &plan, root, &opts).unwrap();
+        assert!(g.approach_mm > 0.0, "{}", g.approach_mm);
+        let (pose, _, sq) = squeeze(&h, &part, &plan, &g, &opts);
+        // The squeeze presses, and never deeper than its target.
+        let deepest = sq.depth_mm.values().copied().fold(0.0, f64::max);
+        assert!(
+            deepest > SQUEEZE_MM - 0.5 && deepest <= SQUEEZE_MM + 1e-9,
+            "{sq:?}"
+        );
+        let mut pts = Vec::new();
+        h.pose_vertices(&pose, &mut pts);
+        let r = hold_test_hand(&h, &pts, &part, mass, mu).unwrap();
+        assert!(r.holds, "{r:?}");
+
+        // The index fingertip of the pinch preshape: the skin vertex furthest along the distal
+        // phalanx, and a cylinder across that direction sunk SQUEEZE_MM into it.
+        let pose = Pose {
+            angles: grasp_plan(GraspType::Pinch).preshape,
+            root: Isometry3::identity(),
+        };
+        h.pose_vertices(&pose, &mut pts);
+        let tr = link_transforms(h.skeleton(), &pose);
+        let dist = Link::IDist.index();
+        let tip = tr[dist] * h.skeleton().tips[Finger::Index as usize];
+        let dip = tr[dist] * h.skeleton().centre(Joint::IDip);
+        let along = (tip - dip).normalize();
+        let end = h.link_vertices()[dist]
+            .iter()
+            .map(|&i| pts[i])
+            .max_by(|a, b| along.dot(&a.coords).total_cmp(&along.dot(&b.coords)))
+            .unwrap();
+        let axis = along.cross(&Vec3::x()).normalize();
+        let centre = end + along * (30.0 - SQUEEZE_MM);
+        let rot = UnitQuaternion::rotation_between(&Vec3::z(), &axis).unwrap();
+        let part = cylinder_at(&Isometry3::from_parts(
+            Translation3::from((centre - axis * 100.0).coords),
+            rot,
+        ));
+        let c = contacts(
+            &part,
+            &pts,
+            h.vertex_link(),
+            &vertex_areas(h.rest_mesh()),
+            &Default::default(),
+        );
+        let touching: Vec<&str> = Link::ALL
+            .iter()
+            .filter(|l| c.touches(l.index()))
+            .map(|l| l.name())
+            .collect();
+        assert_eq!(touching, ["I_DIST"]);
+        assert!(
+            (c.max_depth_mm() - SQUEEZE_MM).abs() < 0.3,
+            "{}",
+            c.max_depth_mm()
+        );
+        let r = hold_test_hand(&h, &pts, &part, mass, mu).unwrap();
         assert!(!r.holds, "{r:?}");
     }
 }

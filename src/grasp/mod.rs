@@ -100,6 +100,12 @@ pub struct GraspReport {
     pub total_contact_area_mm2: f64,
     /// Deepest skin penetration, mm.
     pub max_penetration_mm: f64,
+    /// Wrist travel from the approach until the palm touched (power grasps), mm
+    /// ([`autograsp::approach_to_contact`]).
+    pub approach_to_contact_mm: f64,
+    /// The squeeze after contact ([`autograsp::squeeze`]): the posture measured and tested is
+    /// the squeezed one.
+    pub squeeze: autograsp::Squeeze,
     /// Active joints whose link never touched.
     pub untouched_joints: Vec<String>,
     /// Closing links stopped by another finger (finger-finger collision) before the part.
@@ -210,12 +216,13 @@ pub fn run_scene(scene: &Scene, hand: &dyn PosableHand, quiet: bool) -> Result<G
     timings.search_s = clock.elapsed().as_secs_f64();
     let clock = std::time::Instant::now();
     let root = root_for(hand, &nalgebra::Isometry3::identity(), &approach);
-    let g = autograsp(hand, &part, &plan, root, &AutograspOptions::default())
-        .map_err(|e| e.in_file(&scene.path))?;
+    let opts = AutograspOptions::default();
+    let g = autograsp(hand, &part, &plan, root, &opts).map_err(|e| e.in_file(&scene.path))?;
+    let (pose, _, squeezed) = autograsp::squeeze(hand, &part, &plan, &g, &opts);
     timings.autograsp_s = clock.elapsed().as_secs_f64();
     let clock = std::time::Instant::now();
     let mut pts = Vec::new();
-    hand.pose_vertices(&g.pose, &mut pts);
+    hand.pose_vertices(&pose, &mut pts);
     let areas = vertex_areas(hand.rest_mesh());
     let cs = contacts(
         &part,
@@ -237,7 +244,7 @@ pub fn run_scene(scene: &Scene, hand: &dyn PosableHand, quiet: bool) -> Result<G
     let finger_entry = collide::finger_entry(
         hand,
         &hand_mesh.vertices,
-        &crate::skeleton::forward_kinematics::link_transforms(hand.skeleton(), &g.pose),
+        &crate::skeleton::forward_kinematics::link_transforms(hand.skeleton(), &pose),
     );
     timings.evaluate_s = clock.elapsed().as_secs_f64();
     let clock = std::time::Instant::now();
@@ -267,7 +274,7 @@ pub fn run_scene(scene: &Scene, hand: &dyn PosableHand, quiet: bool) -> Result<G
         .map(|j| {
             (
                 j.name().to_string(),
-                g.pose.angles[j.index()].map(f64::to_degrees),
+                pose.angles[j.index()].map(f64::to_degrees),
             )
         })
         .collect();
@@ -286,6 +293,8 @@ pub fn run_scene(scene: &Scene, hand: &dyn PosableHand, quiet: bool) -> Result<G
         contact_area_by_finger_mm2: cs.area_by_finger(),
         total_contact_area_mm2: cs.total_area_mm2(),
         max_penetration_mm: cs.max_depth_mm(),
+        approach_to_contact_mm: g.approach_mm,
+        squeeze: squeezed,
         untouched_joints: g.untouched.clone(),
         finger_collisions: g.collisions.clone(),
         finger_core_entry_mm: finger_entry,
@@ -502,6 +511,25 @@ mod tests {
         assert!(
             e.contains(&scene_name) && e.contains("grasp.type") && e.contains("hook"),
             "{e}"
+        );
+    }
+
+    /// The shipped bottle scene (issue 8's 60 mm bottle in a power grasp) reaches force
+    /// closure and holds in rapier with the default hand.
+    #[test]
+    fn shipped_bottle_scene_is_force_closure_and_holds() {
+        let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/bottle.toml");
+        let s = scene::read_scene(&path).unwrap();
+        let o = run_scene(&s, hand(), true).unwrap();
+        let r = &o.report;
+        assert!(r.force_closure && r.epsilon > 0.0, "{}", r.epsilon);
+        assert!(r.holds, "{:?}", r.hold_test);
+        // The palm came in, and the squeeze pressed the skin no deeper than its target.
+        assert!(r.approach_to_contact_mm > 0.0);
+        assert!(
+            r.max_penetration_mm <= autograsp::SQUEEZE_MM + 0.5,
+            "{}",
+            r.max_penetration_mm
         );
     }
 }

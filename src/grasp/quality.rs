@@ -429,37 +429,6 @@ mod tests {
     use super::*;
     use crate::rng::Rng;
 
-    /// Independent epsilon: the minimum over unit directions `u` of the support function
-    /// `max_i w_i · u` (equal to the distance from the origin to the hull boundary when the
-    /// origin is inside), minimised by random restarts and shrinking random steps.
-    fn support_min(w: &[Wrench], seed: u64) -> f64 {
-        let h = |u: &Vector6<f64>| w.iter().map(|x| x.dot(u)).fold(f64::MIN, f64::max);
-        let mut rng = Rng::new(seed);
-        let mut best = f64::MAX;
-        for _ in 0..300 {
-            let mut u = Vector6::from_fn(|_, _| rng.normal()).normalize();
-            let mut hu = h(&u);
-            let mut step = 0.5;
-            while step > 1e-7 {
-                let mut improved = false;
-                for _ in 0..40 {
-                    let v = (u + Vector6::from_fn(|_, _| rng.normal()) * step).normalize();
-                    let hv = h(&v);
-                    if hv < hu {
-                        u = v;
-                        hu = hv;
-                        improved = true;
-                    }
-                }
-                if !improved {
-                    step *= 0.5;
-                }
-            }
-            best = best.min(hu);
-        }
-        best
-    }
-
     #[test]
     fn cross_polytope_closed_form() {
         let mut w = Vec::new();
@@ -555,28 +524,126 @@ mod tests {
         assert!(q.force_closure && q.epsilon > 0.0, "{q:?}");
     }
 
+    /// Epsilon of the symmetric three-contact grasp in closed form.
+    ///
+    /// Three contacts 120° apart on a circle of radius `R` in the plane z = 0, at
+    /// `p_i = R (cos a_i, sin a_i, 0)`, `a_i = 0, 120°, 240°`, each pushing toward the centre
+    /// (`n_i = -p_i / R`), friction `μ = 1/2`, centre of mass at the centre, torque scale
+    /// `ρ = R`. [`contact_wrenches`] takes `t₁ = (n × x)/|n × x|` (`n × y` when `|n_x| ≥ 0.9`)
+    /// and `t₂ = n × t₁`, which here are
+    /// contact 0: `t₁ = (0, 0, -1)`, `t₂ = (0, -1, 0)`;
+    /// contact 1: `t₁ = (0, 0, 1)`, `t₂ = (-√3/2, -1/2, 0)`;
+    /// contact 2: `t₁ = (0, 0, -1)`, `t₂ = (-√3/2, 1/2, 0)`;
+    /// edge `k` of contact `i` is `f = n_i + μ (cos θ_k t₁ + sin θ_k t₂)`, `θ_k = kπ/4`, with
+    /// the wrench `w_ik = (f, p_i × f / ρ) = (f, -n_i × f)`.
+    ///
+    /// The eight edges of one contact lie in a 2-D affine plane of wrench space
+    /// (`w(n_i) + μ span{w(t₁), w(t₂)}`), so a facet through three of them holds the whole
+    /// octagon. The nearest facets form one orbit of the grasp's symmetry (D3h); one of them
+    /// holds the octagon of contact 2, edges `θ = 0` and `θ = 7π/4` of contact 0 and edge
+    /// `θ = 0` of contact 1. Six of these are affinely independent (`w_20, w_22, w_24, w_00,
+    /// w_07, w_10`); the facet's hyperplane is `{w : u·w = 1}` with `u = A⁻¹ 1`, `A` the matrix
+    /// of those six wrenches as rows, and `ε = 1/‖u‖`. In exact arithmetic (sympy, from the
+    /// coordinates above) `ε(μ = 1/2) = 0.275925155686099053…`; it involves √2 (from the
+    /// 45° edge) and √3 (from the 120° layout) and no simpler form.
+    ///
+    /// The test builds the six wrenches from the coordinates above (checking
+    /// [`contact_wrenches`] against them), solves for `u`, checks that every one of the 24
+    /// wrenches satisfies `u·w ≤ 1` (the hyperplane supports the grasp wrench space, so
+    /// `ε ≤ 1/‖u‖`) and that no hyperplane through any six of the 24 wrenches supporting the
+    /// space is nearer the origin (all C(24, 6) = 134,596 of them: the definition of epsilon
+    /// evaluated without a hull, so `ε = 1/‖u‖`), then compares the Quickhull's epsilon, which
+    /// carries the joggle ([`JOGGLE`], 1e-7 relative).
     #[test]
-    fn symmetric_three_contact_epsilon_matches_independent_minimum() {
-        // Three contacts 120 degrees apart on the equator of a 30 mm sphere, each pushing to the
-        // centre with friction 0.8, plus two on the poles; compare the hull's epsilon with
-        // the support-function minimum computed without any hull.
+    fn symmetric_three_contact_epsilon_matches_closed_form() {
+        let (r, mu) = (30.0, 0.5);
+        let s3 = 3f64.sqrt() / 2.0;
         let mut cs = Vec::new();
         for k in 0..3 {
             let a = 2.0 * std::f64::consts::PI * k as f64 / 3.0;
             cs.push(contact(
-                [30.0 * a.cos(), 30.0 * a.sin(), 0.0],
+                [r * a.cos(), r * a.sin(), 0.0],
                 [-a.cos(), -a.sin(), 0.0],
             ));
         }
-        let w = contact_wrenches(&cs, 0.8, &Point::origin(), 30.0);
+        let w = contact_wrenches(&cs, mu, &Point::origin(), r);
+        assert_eq!(w.len(), 24);
+        let frames = [
+            (
+                Vec3::new(-1.0, 0.0, 0.0),
+                Vec3::new(0.0, 0.0, -1.0),
+                Vec3::new(0.0, -1.0, 0.0),
+            ),
+            (
+                Vec3::new(0.5, -s3, 0.0),
+                Vec3::new(0.0, 0.0, 1.0),
+                Vec3::new(-s3, -0.5, 0.0),
+            ),
+            (
+                Vec3::new(0.5, s3, 0.0),
+                Vec3::new(0.0, 0.0, -1.0),
+                Vec3::new(-s3, 0.5, 0.0),
+            ),
+        ];
+        let edge = |i: usize, k: usize| {
+            let (n, t1, t2) = frames[i];
+            let th = std::f64::consts::FRAC_PI_4 * k as f64;
+            let f = n + mu * (th.cos() * t1 + th.sin() * t2);
+            let tau = -n.cross(&f);
+            Wrench::new(f.x, f.y, f.z, tau.x, tau.y, tau.z)
+        };
+        for i in 0..3 {
+            for k in 0..CONE_EDGES {
+                assert!(
+                    (w[i * CONE_EDGES + k] - edge(i, k)).norm() < 1e-12,
+                    "{i} {k}"
+                );
+            }
+        }
+        let facet = [
+            edge(2, 0),
+            edge(2, 2),
+            edge(2, 4),
+            edge(0, 0),
+            edge(0, 7),
+            edge(1, 0),
+        ];
+        let a = Matrix6::from_fn(|row, col| facet[row][col]);
+        let u = a.lu().solve(&Vector6::repeat(1.0)).unwrap();
+        let closed = 1.0 / u.norm();
+        assert!(
+            (closed - 0.275_925_155_686_099_05).abs() < 1e-12,
+            "{closed}"
+        );
+        // Supporting: every wrench on the origin's side of the facet's hyperplane.
+        assert!(w.iter().all(|x| u.dot(x) <= 1.0 + 1e-12));
+        // No supporting hyperplane through six wrenches is nearer the origin.
+        let mut nearest = f64::MAX;
+        let n = w.len();
+        let mut idx = [0usize, 1, 2, 3, 4, 5];
+        loop {
+            let p: [Vector6<f64>; D] = std::array::from_fn(|k| w[idx[k]]);
+            if let Some((nrm, off)) = hyperplane(&p) {
+                let (nrm, off) = if off < 0.0 { (-nrm, -off) } else { (nrm, off) };
+                if w.iter().all(|x| nrm.dot(x) <= off + 1e-12) {
+                    nearest = nearest.min(off);
+                }
+            }
+            // Next six-subset in lexicographic order.
+            let Some(k) = (0..D).rev().find(|&k| idx[k] < n - D + k) else {
+                break;
+            };
+            idx[k] += 1;
+            for m in k + 1..D {
+                idx[m] = idx[m - 1] + 1;
+            }
+        }
+        assert!((nearest - closed).abs() < 1e-12, "{nearest} vs {closed}");
         let q = quality(&w);
         assert!(q.force_closure, "{q:?}");
-        let indep = support_min(&w, 11);
-        // The sampled minimum is an upper bound of the true minimum.
-        assert!(indep >= q.epsilon - 1e-6, "{indep} < {}", q.epsilon);
         assert!(
-            (indep - q.epsilon).abs() < 0.02 * q.epsilon,
-            "{indep} vs {}",
+            (q.epsilon - closed).abs() < 1e-6,
+            "{} vs {closed}",
             q.epsilon
         );
     }
