@@ -613,29 +613,24 @@ pub fn placement_search(
     let started = std::time::Instant::now();
     let coarse_sample = skin_sample(hand, SCREEN_STRIDE);
     type Score = (usize, f64, f64, f64);
+    let root_of = |i: usize| Some(placement(part, &cand[i].0, cand[i].1, 3.0)? * gf.inverse());
+    let score = |i: usize, root, opts: &AutograspOptions, sample: &_, edges| {
+        let (e, v, a) = closed_quality(hand, part, plan, mu, root, opts, sample, edges)?;
+        Some((i, e, v, a))
+    };
     let scored: Vec<Option<Score>> = cand
         .par_iter()
         .enumerate()
-        .map_init(Vec::new, |buf, (i, (d, roll))| {
+        .map_init(Vec::new, |buf, (i, _)| {
             bar.inc(1);
             if started.elapsed().as_secs_f64() > time_limit_s {
                 return None;
             }
-            let root = placement(part, d, *roll, 3.0)? * gf.inverse();
+            let root = root_of(i)?;
             if starts_deep_inside(hand, part, plan, root, buf) {
                 return None;
             }
-            let (e, v, a) = closed_quality(
-                hand,
-                part,
-                plan,
-                mu,
-                root,
-                &coarse,
-                &coarse_sample,
-                SCREEN_CONE_EDGES,
-            )?;
-            Some((i, e, v, a))
+            score(i, root, &coarse, &coarse_sample, SCREEN_CONE_EDGES)
         })
         .collect();
     bar.finish_and_clear();
@@ -660,19 +655,13 @@ pub fn placement_search(
             chunk
                 .par_iter()
                 .filter_map(|&(i, ..)| {
-                    let (d, roll) = cand[i];
-                    let root = placement(part, &d, roll, 3.0)? * gf.inverse();
-                    let (e, v, a) = closed_quality(
-                        hand,
-                        part,
-                        plan,
-                        mu,
-                        root,
+                    score(
+                        i,
+                        root_of(i)?,
                         &full,
                         &full_sample,
                         super::quality::CONE_EDGES,
-                    )?;
-                    Some((i, e, v, a))
+                    )
                 })
                 .collect::<Vec<Score>>(),
         );
