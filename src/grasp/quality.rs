@@ -18,9 +18,8 @@
 
 use super::contact::Contact;
 use crate::geometry::{Point, Vec3};
-use nalgebra::{Matrix5, Matrix6, Vector6};
+use nalgebra::Vector6;
 use serde::Serialize;
-use std::collections::HashMap;
 
 /// Number of friction cone edges per contact.
 pub const CONE_EDGES: usize = 8;
@@ -28,10 +27,23 @@ pub const CONE_EDGES: usize = 8;
 /// A 6-D wrench `[fx, fy, fz, τx/ρ, τy/ρ, τz/ρ]`.
 pub type Wrench = Vector6<f64>;
 
-/// The wrenches of the linearised friction cones of `contacts` on a part with centre of mass
-/// `com` and torque scale `rho` (mm).
+/// The wrenches of the linearised friction cones ([`CONE_EDGES`] edges) of `contacts` on a
+/// part with centre of mass `com` and torque scale `rho` (mm).
 pub fn contact_wrenches(contacts: &[Contact], mu: f64, com: &Point, rho: f64) -> Vec<Wrench> {
-    let mut out = Vec::with_capacity(contacts.len() * CONE_EDGES);
+    cone_wrenches(contacts, mu, com, rho, CONE_EDGES)
+}
+
+/// [`contact_wrenches`] with `edges` edges per friction cone (an inscribed pyramid: fewer
+/// edges give a smaller, cheaper grasp wrench space whose epsilon is a lower bound of the
+/// finer cone's, used to rank candidates before the full evaluation).
+pub fn cone_wrenches(
+    contacts: &[Contact],
+    mu: f64,
+    com: &Point,
+    rho: f64,
+    edges: usize,
+) -> Vec<Wrench> {
+    let mut out = Vec::with_capacity(contacts.len() * edges);
     for c in contacts {
         let n = Vec3::from(c.normal);
         let p = Point::from(c.point);
@@ -43,8 +55,8 @@ pub fn contact_wrenches(contacts: &[Contact], mu: f64, com: &Point, rho: f64) ->
             })
             .normalize();
         let t2 = n.cross(&t1);
-        for k in 0..CONE_EDGES {
-            let th = 2.0 * std::f64::consts::PI * k as f64 / CONE_EDGES as f64;
+        for k in 0..edges {
+            let th = 2.0 * std::f64::consts::PI * k as f64 / edges as f64;
             let f = n + mu * (th.cos() * t1 + th.sin() * t2);
             let tau = (p - com).cross(&f) / rho;
             out.push(Wrench::new(f.x, f.y, f.z, tau.x, tau.y, tau.z));
@@ -113,34 +125,145 @@ pub struct Hull {
     interior: Vector6<f64>,
 }
 
-/// Unit normal of the hyperplane through six points (generalised cross product of the five
-/// edge vectors by cofactors), or `None` when they are affinely dependent.
+/// Unit normal of the hyperplane through six points, or `None` when they are affinely
+/// dependent: the null vector of the 5 x 6 matrix of edge vectors by Gaussian elimination
+/// with complete pivoting (Golub & Van Loan, "Matrix Computations", 3.4.8), the stable way to
+/// a null space, in place of the six 5 x 5 cofactor determinants of the generalised cross
+/// product (same vector up to scale, a sixth of the work). The dependence test is the
+/// cofactor vector's length against the edges' scale: that length is the product of the
+/// pivots times the null vector's length with a unit free component.
 fn hyperplane(p: &[Vector6<f64>; D]) -> Option<(Vector6<f64>, f64)> {
     let mut e = [[0.0; D]; D - 1];
+    let mut scale: f64 = 0.0;
     for i in 1..D {
         for k in 0..D {
             e[i - 1][k] = p[i][k] - p[0][k];
+            scale = scale.max(e[i - 1][k].abs());
         }
     }
+    // cols[c]: the original column now at position c.
+    let mut cols: [usize; D] = std::array::from_fn(|c| c);
+    let mut det: f64 = 1.0;
+    for r in 0..D - 1 {
+        let (mut bi, mut bj, mut bv) = (r, r, -1.0);
+        for (i, row) in e.iter().enumerate().skip(r) {
+            for (j, x) in row.iter().enumerate().skip(r) {
+                if x.abs() > bv {
+                    (bi, bj, bv) = (i, j, x.abs());
+                }
+            }
+        }
+        // NaN or zero: the edges do not span five dimensions.
+        if bv.is_nan() || bv <= 0.0 {
+            return None;
+        }
+        e.swap(r, bi);
+        if bj != r {
+            for row in e.iter_mut() {
+                row.swap(r, bj);
+            }
+            cols.swap(r, bj);
+        }
+        let piv = e[r][r];
+        det *= piv;
+        let pivot_row = e[r];
+        for row in e.iter_mut().skip(r + 1) {
+            let f = row[r] / piv;
+            if f != 0.0 {
+                for (x, p) in row.iter_mut().zip(pivot_row).skip(r) {
+                    *x -= f * p;
+                }
+            }
+        }
+    }
+    // Free variable: the last column.
+    let mut x = [0.0; D];
+    x[D - 1] = 1.0;
+    for r in (0..D - 1).rev() {
+        let mut acc = 0.0;
+        for j in r + 1..D {
+            acc += e[r][j] * x[j];
+        }
+        x[r] = -acc / e[r][r];
+    }
     let mut n = Vector6::zeros();
-    for col in 0..D {
-        let m = Matrix5::from_fn(|r, c| e[r][if c < col { c } else { c + 1 }]);
-        let s = if col % 2 == 0 { 1.0 } else { -1.0 };
-        n[col] = s * m.determinant();
+    for c in 0..D {
+        n[cols[c]] = x[c];
     }
     let len = n.norm();
-    let scale: f64 = e.iter().flatten().map(|x| x.abs()).fold(0.0, f64::max);
-    if len.is_nan() || len <= 1e-24 * scale.powi(5).max(1e-300) {
+    if !len.is_finite() || (det * len).abs() <= 1e-24 * scale.powi(5).max(1e-300) {
         return None;
     }
     let n = n / len;
     Some((n, n.dot(&p[0])))
 }
 
+/// Determinant of a 6 x 6 matrix (rows), by Gaussian elimination with partial pivoting.
+fn det6(mut m: [[f64; D]; D]) -> f64 {
+    let mut det = 1.0;
+    for r in 0..D {
+        let p = (r..D)
+            .max_by(|&a, &b| m[a][r].abs().total_cmp(&m[b][r].abs()))
+            .expect("rows left");
+        if m[p][r] == 0.0 {
+            return 0.0;
+        }
+        if p != r {
+            m.swap(p, r);
+            det = -det;
+        }
+        let piv = m[r][r];
+        det *= piv;
+        let pivot_row = m[r];
+        for row in m.iter_mut().skip(r + 1) {
+            let f = row[r] / piv;
+            for (x, p) in row.iter_mut().zip(pivot_row).skip(r + 1) {
+                *x -= f * p;
+            }
+        }
+    }
+    det
+}
+
+/// The vertex set of the ridge of a facet with vertices `verts` that omits `verts[skip]`,
+/// as one number: the five indices sorted and packed in 25 bits each (inputs have fewer than
+/// 2^25 points, checked in [`Hull::build`]), so that ridges pair by sorting integers.
+fn ridge_key(verts: &[usize; D], skip: usize) -> u128 {
+    let mut k = [0usize; D - 1];
+    let mut n = 0;
+    for (v, &x) in verts.iter().enumerate() {
+        if v != skip {
+            // Insertion sort of five.
+            let mut i = n;
+            while i > 0 && k[i - 1] > x {
+                k[i] = k[i - 1];
+                i -= 1;
+            }
+            k[i] = x;
+            n += 1;
+        }
+    }
+    k.iter().fold(0u128, |acc, &x| (acc << 25) | x as u128)
+}
+
+/// Scratch buffers of one hull construction (reused across Quickhull iterations).
+#[derive(Default)]
+struct Scratch {
+    /// Facet -> (round, visible) marks of the visibility search.
+    mark: Vec<(usize, bool)>,
+    visible: Vec<usize>,
+    new_ids: Vec<usize>,
+    /// Ridges of the new facets through the apex: ([`ridge_key`], facet, slot).
+    ridges: Vec<(u128, usize, usize)>,
+    orphans: Vec<usize>,
+    /// Dead facet slots to reuse.
+    free: Vec<usize>,
+}
+
 impl Hull {
     /// Quickhull of `input`; `None` when the points do not span 6-D. Tries joggles of
     /// [`JOGGLE`] and 100 and 10,000 times larger (qhull retries `QJ` the same way) until the
-    /// construction succeeds and every input point is inside every facet.
+    /// construction succeeds and the hull passes its convexity check.
     pub fn new(input: &[Vector6<f64>]) -> Option<Hull> {
         // Rank test on the raw points: the joggle must not invent a sixth dimension.
         let scale = input.iter().map(|p| p.amax()).fold(0.0, f64::max);
@@ -157,7 +280,10 @@ impl Hull {
     }
 
     fn build(input: &[Vector6<f64>], joggle: f64) -> Option<Hull> {
-        if input.len() < D + 1 || input.iter().any(|p| !p.iter().all(|x| x.is_finite())) {
+        if input.len() < D + 1
+            || input.len() >= 1 << 25
+            || input.iter().any(|p| !p.iter().all(|x| x.is_finite()))
+        {
             return None;
         }
         let scale = input
@@ -202,8 +328,7 @@ impl Hull {
         let mut guard = 0usize;
         // Facets that may have outside points (stale entries are skipped when popped).
         let mut pending: Vec<usize> = (0..=D).collect();
-        // Visit marks of the visibility search: facet -> (round, visible).
-        let mut mark: Vec<(usize, bool)> = Vec::new();
+        let mut s = Scratch::default();
         loop {
             guard += 1;
             if guard > 200_000 {
@@ -220,106 +345,150 @@ impl Hull {
                 .iter()
                 .max_by(|&&a, &&b| h.dist(f0, a).total_cmp(&h.dist(f0, b)))
                 .expect("non-empty");
-            // Visible facets by BFS from f0.
-            mark.resize(h.facets.len(), (0, false));
-            let seen = |mark: &[(usize, bool)], g: usize| mark[g].0 == guard;
-            let mut visible = vec![f0];
-            mark[f0] = (guard, true);
-            let mut qi = 0;
-            while qi < visible.len() {
-                let f = visible[qi];
-                qi += 1;
-                for k in 0..D {
-                    let g = h.facets[f].neighbours[k];
-                    if seen(&mark, g) {
-                        continue;
-                    }
-                    let vis = h.dist(g, apex) > eps;
-                    mark[g] = (guard, vis);
-                    if vis {
-                        visible.push(g);
-                    }
+            h.add_point(f0, apex, guard, eps, &mut s)?;
+            pending.extend(s.new_ids.iter().copied());
+        }
+        h.locally_convex(1e3 * eps).then_some(h)
+    }
+
+    /// One Quickhull step: the facets `apex` sees (searched through the adjacency from `f0`,
+    /// which sees it) are replaced by the cone from `apex` to their horizon; their outside
+    /// points go to the new facets (`s.new_ids`). `None` on a broken adjacency (round-off).
+    fn add_point(
+        &mut self,
+        f0: usize,
+        apex: usize,
+        round: usize,
+        eps: f64,
+        s: &mut Scratch,
+    ) -> Option<()> {
+        let h = self;
+        s.mark.resize(h.facets.len(), (0, false));
+        s.visible.clear();
+        s.visible.push(f0);
+        s.mark[f0] = (round, true);
+        let mut qi = 0;
+        while qi < s.visible.len() {
+            let f = s.visible[qi];
+            qi += 1;
+            for k in 0..D {
+                let g = h.facets[f].neighbours[k];
+                if s.mark[g].0 == round {
+                    continue;
+                }
+                let vis = h.dist(g, apex) > eps;
+                s.mark[g] = (round, vis);
+                if vis {
+                    s.visible.push(g);
                 }
             }
-            // Horizon ridges: (ridge vertices, the facet beyond).
-            let mut new_ids = Vec::new();
-            let mut ridge_map: HashMap<[usize; D - 1], (usize, usize)> = HashMap::new();
-            let mut orphans = Vec::new();
-            for &f in &visible {
-                for k in 0..D {
-                    let g = h.facets[f].neighbours[k];
-                    if mark[g].1 {
-                        continue;
-                    }
-                    let mut verts = h.facets[f].verts;
-                    verts[k] = apex;
-                    let (normal, offset) = h.oriented_plane(&verts)?;
-                    let id = h.facets.len();
-                    let mut neighbours = [usize::MAX; D];
-                    neighbours[k] = g;
-                    // Point g's link to f at the new facet.
-                    let gk = h.facets[g]
-                        .neighbours
-                        .iter()
-                        .position(|&x| x == f)
-                        .expect("adjacency is symmetric");
-                    h.facets[g].neighbours[gk] = id;
-                    h.facets.push(Facet {
-                        verts,
-                        neighbours,
-                        normal,
-                        offset,
-                        outside: Vec::new(),
-                        alive: true,
-                    });
-                    new_ids.push(id);
+        }
+        // New facets over the horizon ridges (a visible facet's ridge whose neighbour is not
+        // visible), each linked to the facet beyond.
+        s.new_ids.clear();
+        s.ridges.clear();
+        for vi in 0..s.visible.len() {
+            let f = s.visible[vi];
+            for k in 0..D {
+                let g = h.facets[f].neighbours[k];
+                if s.mark[g].1 {
+                    continue;
                 }
-            }
-            // Link the new facets to each other through their ridges containing the apex.
-            for &id in &new_ids {
-                let verts = h.facets[id].verts;
-                for k in 0..D {
-                    if verts[k] == apex {
-                        continue;
+                let mut verts = h.facets[f].verts;
+                verts[k] = apex;
+                let (normal, offset) = h.oriented_plane(&verts)?;
+                let mut neighbours = [usize::MAX; D];
+                neighbours[k] = g;
+                let facet = Facet {
+                    verts,
+                    neighbours,
+                    normal,
+                    offset,
+                    outside: Vec::new(),
+                    alive: true,
+                };
+                // A dead slot is reused only when it is not one of this step's visible facets
+                // (those die below, after their links are read).
+                let id = match s.free.pop() {
+                    Some(id) => {
+                        let old = std::mem::replace(&mut h.facets[id], facet);
+                        // Keep the old outside list's capacity.
+                        let mut out = old.outside;
+                        out.clear();
+                        h.facets[id].outside = out;
+                        id
                     }
-                    let mut key = [0usize; D - 1];
-                    for (slot, m) in key.iter_mut().zip((0..D).filter(|&m| m != k)) {
-                        *slot = verts[m];
+                    None => {
+                        h.facets.push(facet);
+                        h.facets.len() - 1
                     }
-                    key.sort_unstable();
-                    match ridge_map.remove(&key) {
-                        Some((other, ok)) => {
-                            h.facets[id].neighbours[k] = other;
-                            h.facets[other].neighbours[ok] = id;
-                        }
-                        None => {
-                            ridge_map.insert(key, (id, k));
-                        }
-                    }
-                }
-            }
-            if !ridge_map.is_empty()
-                || new_ids
+                };
+                let gk = h.facets[g]
+                    .neighbours
                     .iter()
-                    .any(|&id| h.facets[id].neighbours.contains(&usize::MAX))
-            {
+                    .position(|&x| x == f)
+                    .expect("adjacency is symmetric");
+                h.facets[g].neighbours[gk] = id;
+                s.new_ids.push(id);
+                // Its ridges through the apex, to pair with the other new facets.
+                for m in 0..D {
+                    if m == k {
+                        continue;
+                    }
+                    s.ridges.push((ridge_key(&verts, m), id, m));
+                }
+            }
+        }
+        // Every ridge through the apex is shared by exactly two new facets.
+        s.ridges.sort_unstable();
+        if !s.ridges.len().is_multiple_of(2) {
+            return None;
+        }
+        for pair in s.ridges.chunks_exact(2) {
+            let ((ka, a, ia), (kb, b, ib)) = (pair[0], pair[1]);
+            if ka != kb {
                 return None;
             }
-            for &f in &visible {
-                h.facets[f].alive = false;
-                orphans.append(&mut h.facets[f].outside);
-            }
-            orphans.retain(|&p| p != apex);
-            h.assign(&orphans, &new_ids, eps);
-            pending.extend(new_ids.iter().copied());
+            h.facets[a].neighbours[ia] = b;
+            h.facets[b].neighbours[ib] = a;
         }
-        // Check: every point inside every facet (round-off may have broken convexity).
-        let ok = h.facets.iter().filter(|f| f.alive).all(|f| {
-            h.points
-                .iter()
-                .all(|p| f.normal.dot(p) - f.offset <= 1e3 * eps)
-        });
-        ok.then_some(h)
+        s.orphans.clear();
+        for &f in &s.visible {
+            h.facets[f].alive = false;
+            s.orphans.append(&mut h.facets[f].outside);
+            s.free.push(f);
+        }
+        if s.mark.len() < h.facets.len() {
+            s.mark.resize(h.facets.len(), (0, false));
+        }
+        // Reused slots must not carry this round's visible mark.
+        for &id in &s.new_ids {
+            s.mark[id] = (0, false);
+        }
+        s.orphans.retain(|&p| p != apex);
+        let orphans = std::mem::take(&mut s.orphans);
+        h.assign(&orphans, &s.new_ids, eps);
+        s.orphans = orphans;
+        Some(())
+    }
+
+    /// Whether every ridge is convex: for each facet, the vertex of each neighbour opposite
+    /// their shared ridge lies below the facet (within `tol`). A closed simplicial surface
+    /// that is locally convex at every ridge bounds a convex polytope (Tietze's theorem on
+    /// locally convex sets), and Quickhull only discards points below a facet, so this checks
+    /// what round-off could break, in O(facets) instead of O(facets x points).
+    fn locally_convex(&self, tol: f64) -> bool {
+        self.facets.iter().filter(|f| f.alive).all(|f| {
+            f.neighbours.iter().all(|&g| {
+                let gf = &self.facets[g];
+                gf.alive
+                    && gf
+                        .verts
+                        .iter()
+                        .filter(|v| !f.verts.contains(v))
+                        .all(|&v| f.normal.dot(&self.points[v]) - f.offset <= tol)
+            })
+        })
     }
 
     fn dist(&self, f: usize, p: usize) -> f64 {
@@ -364,8 +533,9 @@ impl Hull {
         let c = self.interior;
         let mut v = 0.0;
         for f in self.facets.iter().filter(|f| f.alive) {
-            let m = Matrix6::from_fn(|r, k| self.points[f.verts[k]][r] - c[r]);
-            v += m.determinant().abs();
+            let m: [[f64; D]; D] =
+                std::array::from_fn(|k| std::array::from_fn(|r| self.points[f.verts[k]][r] - c[r]));
+            v += det6(m).abs();
         }
         v / 720.0
     }
