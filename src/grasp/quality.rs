@@ -117,6 +117,24 @@ struct Facet {
     alive: bool,
 }
 
+impl Facet {
+    /// A live facet with no outside points yet.
+    fn new(
+        verts: [usize; D],
+        neighbours: [usize; D],
+        (normal, offset): (Vector6<f64>, f64),
+    ) -> Facet {
+        Facet {
+            verts,
+            neighbours,
+            normal,
+            offset,
+            outside: Vec::new(),
+            alive: true,
+        }
+    }
+}
+
 /// A full-dimensional convex hull in 6-D with simplicial facets.
 #[derive(Clone, Debug)]
 pub struct Hull {
@@ -311,15 +329,8 @@ impl Hull {
             let vs: Vec<usize> = (0..=D).filter(|&k| k != i).collect();
             let verts: [usize; D] = std::array::from_fn(|k| simplex[vs[k]]);
             let neighbours: [usize; D] = std::array::from_fn(|k| vs[k]);
-            let (normal, offset) = h.oriented_plane(&verts)?;
-            h.facets.push(Facet {
-                verts,
-                neighbours,
-                normal,
-                offset,
-                outside: Vec::new(),
-                alive: true,
-            });
+            let plane = h.oriented_plane(&verts)?;
+            h.facets.push(Facet::new(verts, neighbours, plane));
         }
         let all: Vec<usize> = (0..h.points.len())
             .filter(|i| !simplex.contains(i))
@@ -396,17 +407,10 @@ impl Hull {
                 }
                 let mut verts = h.facets[f].verts;
                 verts[k] = apex;
-                let (normal, offset) = h.oriented_plane(&verts)?;
+                let plane = h.oriented_plane(&verts)?;
                 let mut neighbours = [usize::MAX; D];
                 neighbours[k] = g;
-                let facet = Facet {
-                    verts,
-                    neighbours,
-                    normal,
-                    offset,
-                    outside: Vec::new(),
-                    alive: true,
-                };
+                let facet = Facet::new(verts, neighbours, plane);
                 // A dead slot is reused only when it is not one of this step's visible facets
                 // (those die below, after their links are read).
                 let id = match s.free.pop() {
@@ -598,6 +602,7 @@ fn initial_simplex(points: &[Vector6<f64>], eps: f64) -> Option<Vec<usize>> {
 mod tests {
     use super::*;
     use crate::rng::Rng;
+    use nalgebra::Matrix6;
 
     #[test]
     fn cross_polytope_closed_form() {

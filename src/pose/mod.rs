@@ -24,12 +24,12 @@
 //! | --- | --- | --- | --- | --- |
 //! | template, template, LBS | 0.00 mm | 6 / 15 | 9.7 % | M_PROX −21.9 % |
 //! | template, template, DQS | 0.00 mm | 12 / 15 | 4.5 % | M_PROX −18.1 % |
-//! | template, template, DQS + volume | 0.67 mm | 15 / 15 | 0.2 % | L_PROX −0.3 % |
+//! | template, template, DQS + volume | 0.66 mm | 15 / 15 | 0.1 % | L_PROX −0.3 % |
 //! | template, heat, DQS | 0.63 mm | 10 / 15 | 5.8 % | M_PROX −19.7 % |
-//! | template, heat, DQS + volume | 2.23 mm | 15 / 15 | 0.2 % | M_PROX −0.2 % |
-//! | seed 72 true hand, template, DQS + volume | 0.72 mm | 15 / 15 | 0.1 % | M_PROX −0.5 % |
-//! | seed 72 reconstructed (30-s trials), DQS | 0.86 mm | 7 / 15 | 6.6 % | M_PROX −19.7 % |
-//! | seed 72 reconstructed (30-s trials), DQS + volume | 0.96 mm | 15 / 15 | 0.2 % | R_PROX −0.9 % |
+//! | template, heat, DQS + volume | 2.22 mm | 15 / 15 | 0.1 % | M_PROX −0.2 % |
+//! | seed 72 true hand, template, DQS + volume | 0.72 mm | 15 / 15 | 0.1 % | L_PROX −0.3 % |
+//! | seed 72 reconstructed (30-s trials), DQS | 0.64 mm | 5 / 15 | 7.4 % | M_PROX −20.8 % |
+//! | seed 72 reconstructed (30-s trials), DQS + volume | 1.90 mm | 15 / 15 | 0.1 % | R_PROX −0.3 % |
 //!
 //! Dual-quaternion skinning alone loses the proximal phalanges' tissue in a fist because the
 //! joints' axes lie dorsal of the fingers' cross-sections (derivation in [`volume_correction`]);
