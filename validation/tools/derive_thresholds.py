@@ -54,7 +54,12 @@ def main():
     text = open(args.file).read()
     suite = json.load(open(args.suite))
     for name, s in sorted(suite.items()):
-        rep = json.load(open(os.path.join(args.subjects, name, "out", "report.json")))
+        rep_path = os.path.join(args.subjects, name, "out", "report.json")
+        if not os.path.exists(rep_path):
+            print(f"{rep_path}: missing (run `ergohand validate --suite validation/` first); "
+                  f"[subject.{name}] left", file=sys.stderr)
+            continue
+        rep = json.load(open(rep_path))
         fig = {
             "skin_mean_mm": s["skin"]["mean_mm"], "skin_max_mm": s["skin"]["max_mm"],
             "dimension_error_mm": max(abs(d["skin_mm"] - d["given_mm"])
