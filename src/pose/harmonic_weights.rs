@@ -19,7 +19,7 @@ use crate::anatomy::Link;
 use crate::error::Result;
 use crate::geometry::{Point, TriMesh};
 use crate::template::{LinkWeights, TemplateHand};
-use crate::tet::{place_boundary, SurfaceBinding, TemplateTet};
+use crate::tet::{place_boundary_nodes, SurfaceBinding, TemplateTet};
 use faer::Mat;
 use nalgebra::Isometry3;
 
@@ -84,12 +84,6 @@ pub fn pose_tet_nodes(
 ) -> Result<Vec<Point>> {
     let mut nodes =
         SkinBinding::new(rest_nodes, weights, transforms.len())?.apply(method, transforms);
-    for (&v, p) in binding
-        .nodes
-        .iter()
-        .zip(place_boundary(binding, posed_skin)?)
-    {
-        nodes[v] = p;
-    }
+    place_boundary_nodes(binding, posed_skin, &mut nodes)?;
     Ok(nodes)
 }

@@ -163,17 +163,12 @@ pub fn pose_command_with(
     } else {
         Skinning::DualQuaternion
     };
-    let (pose, penetration_mm) = if opts.resolve_contacts {
+    let (pose, resolved_depth_mm) = if opts.resolve_contacts {
         let r = resolve_finger_contacts(&hand, &pose, method, &ResolveOptions::default());
         warnings.extend(r.describe().into_iter().map(|w| format!("{pose_arg}: {w}")));
-        (r.pose, r.depth_after_mm)
+        (r.pose, Some(r.depth_after_mm))
     } else {
-        let pen = quality::finger_penetration(
-            &hand.posed_skin(&pose, method),
-            &hand.weights,
-            ResolveOptions::default().max_depth_mm,
-        );
-        (pose, pen.depth_mm)
+        (pose, None)
     };
     let baked = if ext.as_deref() == Some("glb") {
         None
@@ -211,16 +206,16 @@ pub fn pose_command_with(
         });
         Some((rig.tets, posed))
     };
-    let penetration_mm = match &baked {
-        Some((_, p)) => {
-            quality::finger_penetration(
-                &p.skin,
-                &hand.weights,
-                ResolveOptions::default().max_depth_mm,
-            )
+    // Measured on the skin as written: the resolver's figure holds unless the volume
+    // correction moved the skin since.
+    let depth = |skin: &crate::geometry::TriMesh| {
+        quality::finger_penetration(skin, &hand.weights, ResolveOptions::default().max_depth_mm)
             .depth_mm
-        }
-        None => penetration_mm,
+    };
+    let penetration_mm = match (&baked, resolved_depth_mm) {
+        (Some((_, p)), _) => depth(&p.skin),
+        (None, Some(d)) => d,
+        (None, None) => depth(&hand.posed_skin(&pose, method)),
     };
     for w in &warnings {
         log.warn(w);
@@ -251,7 +246,7 @@ pub fn pose_command_with(
         _ => {
             let posed = match baked {
                 Some((_, b)) => b.skin,
-                None => hand.posed_skin(&pose, Skinning::DualQuaternion),
+                None => hand.posed_skin(&pose, method),
             };
             write_obj(out_file, &posed, Units::Millimetres, None)?;
         }

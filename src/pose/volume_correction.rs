@@ -38,7 +38,7 @@ use crate::geometry::{Point, TriMesh, Vec3};
 use crate::skeleton::forward_kinematics::link_transforms;
 use crate::skeleton::{Pose, Skeleton};
 use crate::template::{LinkWeights, TemplateHand};
-use crate::tet::{place_boundary, SurfaceBinding, TemplateTet};
+use crate::tet::{place_boundary_nodes, SurfaceBinding, TemplateTet};
 use nalgebra::{DMatrix, DVector, Isometry3};
 
 /// Options of [`preserve_segment_volumes`].
@@ -180,7 +180,7 @@ pub fn preserve_segment_volumes(
     // Largest change of an amplitude per step: a doubling of the distance from the bone in the
     // blended band, far beyond any swelling that keeps tissue (0.2-0.8 in `fist`).
     const MAX_STEP: f64 = 1.0;
-    while worst_after > opts.tolerance && iterations < opts.max_iterations {
+    'newton: while worst_after > opts.tolerance && iterations < opts.max_iterations {
         // Jacobian by forward differences, one amplitude at a time: a segment's volume also
         // depends on its neighbours' amplitudes (the blended band at a joint is shared).
         let m = kept.len();
@@ -226,12 +226,7 @@ pub fn preserve_segment_volumes(
             }
             scale *= 0.5;
             if scale < 0.1 {
-                return VolumeCorrection {
-                    amplitude,
-                    iterations,
-                    worst_before,
-                    worst_after,
-                };
+                break 'newton;
             }
         }
     }
@@ -340,14 +335,7 @@ impl VolumeRig {
             };
             (raw, c)
         };
-        for (&v, p) in self
-            .binding
-            .nodes
-            .iter()
-            .zip(place_boundary(&self.binding, &skin)?)
-        {
-            nodes[v] = p;
-        }
+        place_boundary_nodes(&self.binding, &skin, &mut nodes)?;
         let volume_changes = finger_volume_changes(
             &self.rest_volumes,
             &segment_volumes(&nodes, &self.tets, &self.labels, n),

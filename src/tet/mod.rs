@@ -22,7 +22,7 @@ pub mod transfer;
 pub use elastic::{ArapOptions, ElasticSolver, ElasticStats};
 pub use mesh::{Stats, TetMesh, TetQuality};
 pub use stuffing::{isosurface_stuffing, StuffingParams};
-pub use transfer::{bind_boundary, place_boundary, SurfaceBinding};
+pub use transfer::{bind_boundary, place_boundary, place_boundary_nodes, SurfaceBinding};
 
 use crate::error::{Error, Result};
 use crate::geometry::closest_point::AabbTree;

@@ -62,6 +62,19 @@ pub fn bind_boundary(tet: &TetMesh, surface: &TriMesh) -> Result<SurfaceBinding>
     })
 }
 
+/// Move the bound nodes of `nodes` (a whole node array of the bound tet mesh) onto `deformed`
+/// ([`place_boundary`]); the other nodes stay.
+pub fn place_boundary_nodes(
+    binding: &SurfaceBinding,
+    deformed: &TriMesh,
+    nodes: &mut [Point],
+) -> Result<()> {
+    for (&v, p) in binding.nodes.iter().zip(place_boundary(binding, deformed)?) {
+        nodes[v] = p;
+    }
+    Ok(())
+}
+
 /// Positions of the bound nodes on `deformed` (the bound surface with moved vertices: same
 /// vertex count, same faces), in the order of [`SurfaceBinding::nodes`]. Errors (one line)
 /// when `deformed` is not homologous to the bound surface.
