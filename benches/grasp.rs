@@ -13,7 +13,7 @@ use ergohand::grasp::contact::{contacts, vertex_areas, ContactOptions, PartShape
 use ergohand::grasp::parts::{mesh_sdf, Part};
 use ergohand::grasp::quality::grasp_quality;
 use ergohand::grasp::scene::{pose_from, GraspType};
-use ergohand::grasp::{PosableHand, SkinnedHand};
+use ergohand::grasp::{evaluate, PosableHand, SkinnedHand};
 use nalgebra::Isometry3;
 use std::hint::black_box;
 
@@ -42,17 +42,7 @@ fn grasp_bench(c: &mut Criterion) {
     gr.sample_size(10);
     gr.bench_function("evaluate_pose_contacts_epsilon", |b| {
         let mut pts = Vec::new();
-        b.iter(|| {
-            hand.pose_vertices(black_box(&g.pose), &mut pts);
-            let cs = contacts(
-                &part,
-                &pts,
-                hand.vertex_link(),
-                &areas,
-                &ContactOptions::default(),
-            );
-            grasp_quality(&cs.contacts, 0.5, &part.centre_of_mass, part.max_radius)
-        })
+        b.iter(|| evaluate(&hand, &part, black_box(&g.pose), 0.5, &areas, &mut pts))
     });
     // Its two parts apart (issue 9's "contact query" and "epsilon" benches).
     let mut posed = Vec::new();

@@ -69,6 +69,30 @@ pub fn load_hand(model: Option<&Path>, side: crate::anatomy::Side) -> Result<Ski
     }
 }
 
+/// One evaluation of a grasp (issue 8's speed goal): `hand` posed in `pose` into `posed` (a
+/// reused buffer), its contacts with `part` ([`contacts`], default options, `areas` from
+/// [`vertex_areas`]) and their quality with friction `mu` (Ferrari-Canny epsilon and volume,
+/// [`quality::grasp_quality`], torques over the part's maximum radius).
+pub fn evaluate(
+    hand: &dyn PosableHand,
+    part: &PartShape,
+    pose: &crate::skeleton::Pose,
+    mu: f64,
+    areas: &[f64],
+    posed: &mut Vec<Point>,
+) -> (ContactSet, quality::Quality) {
+    hand.pose_vertices(pose, posed);
+    let cs = contacts(
+        part,
+        posed,
+        hand.vertex_link(),
+        areas,
+        &ContactOptions::default(),
+    );
+    let q = quality::grasp_quality(&cs.contacts, mu, &part.centre_of_mass, part.max_radius);
+    (cs, q)
+}
+
 /// `grasp.json`.
 #[derive(Clone, Debug, Serialize)]
 pub struct GraspReport {
@@ -222,21 +246,8 @@ pub fn run_scene(scene: &Scene, hand: &dyn PosableHand, quiet: bool) -> Result<G
     timings.autograsp_s = clock.elapsed().as_secs_f64();
     let clock = std::time::Instant::now();
     let mut pts = Vec::new();
-    hand.pose_vertices(&pose, &mut pts);
     let areas = vertex_areas(hand.rest_mesh());
-    let cs = contacts(
-        &part,
-        &pts,
-        hand.vertex_link(),
-        &areas,
-        &ContactOptions::default(),
-    );
-    let q = quality::grasp_quality(
-        &cs.contacts,
-        scene.friction,
-        &part.centre_of_mass,
-        part.max_radius,
-    );
+    let (cs, q) = evaluate(hand, &part, &pose, scene.friction, &areas, &mut pts);
     let hand_mesh = TriMesh {
         vertices: pts,
         faces: hand.rest_mesh().faces.clone(),
