@@ -440,6 +440,22 @@ fn estimate_local(
         .collect();
     let driver_names: Vec<String> = nb_cols.iter().map(|&c| driver_names[c].clone()).collect();
     let nb_terms: Vec<StaTerms> = nb_cols.iter().map(|&c| col_terms[c]).collect();
+    // The soft-tissue model about a free centre (3-DOF, SCoRE's) or a hinge axis (1-DOF,
+    // SARA's). Without a separable driver it would be SCoRE's own system: not fitted.
+    let fit_sta = |axis: Option<Vec3>| {
+        if nb_cols.is_empty() {
+            Err(Error::invalid("no separable driver"))
+        } else {
+            score_sta(
+                &sta_identity,
+                &sta_poses,
+                &nb_drivers,
+                axis,
+                &nb_terms,
+                PRIOR_SLIDE_MM_PER_RAD,
+            )
+        }
+    };
 
     let mut alternatives: Vec<(String, Point)> = Vec::new();
     let mut warnings = Vec::new();
@@ -467,19 +483,7 @@ fn estimate_local(
 
     if j.dof() == 3 {
         let score = score_centre(&identity, &poses);
-        // Without a separable driver the model would be SCoRE's own system: not fitted.
-        let sta = if nb_cols.is_empty() {
-            Err(Error::invalid("no separable driver"))
-        } else {
-            score_sta(
-                &sta_identity,
-                &sta_poses,
-                &nb_drivers,
-                None,
-                &nb_terms,
-                PRIOR_SLIDE_MM_PER_RAD,
-            )
-        };
+        let sta = fit_sta(None);
         let bcls = common_sphere_centre_bias_compensated(&track_refs, None);
         let ls = common_sphere_centre(&track_refs);
         if let Ok(s) = &sta {
@@ -586,19 +590,7 @@ fn estimate_local(
         }
         let circle = circle_centre_on_axis(&track_refs, &a, &near)
             .map_err(|e| fail(format!("circle centre: {e}")))?;
-        // Without a separable driver the model would be SCoRE's own system: not fitted.
-        let sta = if nb_cols.is_empty() {
-            Err(Error::invalid("no separable driver"))
-        } else {
-            score_sta(
-                &sta_identity,
-                &sta_poses,
-                &nb_drivers,
-                Some(a),
-                &nb_terms,
-                PRIOR_SLIDE_MM_PER_RAD,
-            )
-        };
+        let sta = fit_sta(Some(a));
         // The point of a line through `p` along the axis level with `near`.
         let level_on = |p: Point| p + a * (near - p).dot(&a);
         if let Ok(s) = &sta {
