@@ -238,25 +238,14 @@ impl ElasticSolver {
             row_of_fixed[v] = r;
         }
         let mut rhs = Mat::<f64>::zeros(self.n_free, k);
-        for (t, tet) in self.tets.iter().enumerate() {
-            let (v, g) = (self.volume[t], &self.grad[t]);
-            for a in 0..4 {
-                let i = self.free_index[tet[a]];
-                if i == usize::MAX {
-                    continue;
-                }
-                for b in 0..4 {
-                    let r = row_of_fixed[tet[b]];
-                    if r == usize::MAX {
-                        continue;
-                    }
-                    let kab = v * g[a].dot(&g[b]);
-                    for c in 0..k {
-                        rhs[(i, c)] -= kab * held[(r, c)];
-                    }
+        self.for_each_free_corner(|t, a, i| {
+            for (node, kab) in self.held_couplings(t, a) {
+                let r = row_of_fixed[node];
+                for c in 0..k {
+                    rhs[(i, c)] -= kab * held[(r, c)];
                 }
             }
-        }
+        });
         self.factor.solve(&mut rhs);
         let mut out = Mat::<f64>::zeros(n, k);
         for node in 0..n {
@@ -269,6 +258,29 @@ impl ElasticSolver {
             }
         }
         Ok(out)
+    }
+
+    /// Calls `visit(t, a, i)` for every corner `a` of every tetrahedron `t` whose node is free
+    /// (row `i` of the reduced system): the rows a right-hand side is assembled on.
+    fn for_each_free_corner(&self, mut visit: impl FnMut(usize, usize, usize)) {
+        for (t, tet) in self.tets.iter().enumerate() {
+            for (a, &node) in tet.iter().enumerate() {
+                let i = self.free_index[node];
+                if i != usize::MAX {
+                    visit(t, a, i);
+                }
+            }
+        }
+    }
+
+    /// The held corners `b` of tetrahedron `t` with their stiffness coupling to corner `a`,
+    /// `K_ab = V ∇N_a · ∇N_b` (the linear FEM Laplacian's entry): (held node, `K_ab`). A held
+    /// node's known position moves to the right-hand side of the free row as `−K_ab x_b`.
+    fn held_couplings(&self, t: usize, a: usize) -> impl Iterator<Item = (usize, f64)> + '_ {
+        let (v, g, tet) = (self.volume[t], &self.grad[t], self.tets[t]);
+        (0..4)
+            .filter(move |&b| self.free_index[tet[b]] == usize::MAX)
+            .map(move |b| (tet[b], v * g[a].dot(&g[b])))
     }
 
     fn deformation_gradient(&self, x: &[Point], t: usize) -> Matrix3<f64> {
@@ -292,24 +304,15 @@ impl ElasticSolver {
             return;
         }
         let mut rhs = Mat::<f64>::zeros(self.n_free, 3);
-        for (t, tet) in self.tets.iter().enumerate() {
-            let (v, g) = (self.volume[t], &self.grad[t]);
-            for a in 0..4 {
-                let i = self.free_index[tet[a]];
-                if i == usize::MAX {
-                    continue;
-                }
-                let mut b_i = rotations[t] * g[a] * v;
-                for b in 0..4 {
-                    if self.free_index[tet[b]] == usize::MAX {
-                        b_i -= x[tet[b]].coords * (v * g[a].dot(&g[b]));
-                    }
-                }
-                for c in 0..3 {
-                    rhs[(i, c)] += b_i[c];
-                }
+        self.for_each_free_corner(|t, a, i| {
+            let mut b_i = rotations[t] * self.grad[t][a] * self.volume[t];
+            for (node, kab) in self.held_couplings(t, a) {
+                b_i -= x[node].coords * kab;
             }
-        }
+            for c in 0..3 {
+                rhs[(i, c)] += b_i[c];
+            }
+        });
         self.factor.solve(&mut rhs);
         for (v, &i) in self.free_index.iter().enumerate() {
             if i != usize::MAX {
