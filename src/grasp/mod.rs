@@ -71,8 +71,9 @@ pub fn load_hand(model: Option<&Path>, side: crate::anatomy::Side) -> Result<Ski
 
 /// One evaluation of a grasp (issue 8's speed goal): `hand` posed in `pose` into `posed` (a
 /// reused buffer), its contacts with `part` ([`contacts`], default options, `areas` from
-/// [`vertex_areas`]) and their quality with friction `mu` (Ferrari-Canny epsilon and volume,
-/// [`quality::grasp_quality`], torques over the part's maximum radius).
+/// [`vertex_areas`]) and their force closure and Ferrari-Canny epsilon with friction `mu`
+/// ([`quality::grasp_epsilon`], torques over the part's maximum radius; the volume quality,
+/// which needs the whole hull, is left to the report).
 pub fn evaluate(
     hand: &dyn PosableHand,
     part: &PartShape,
@@ -80,7 +81,7 @@ pub fn evaluate(
     mu: f64,
     areas: &[f64],
     posed: &mut Vec<Point>,
-) -> (ContactSet, quality::Quality) {
+) -> (ContactSet, quality::Epsilon) {
     hand.pose_vertices(pose, posed);
     let cs = contacts(
         part,
@@ -89,7 +90,7 @@ pub fn evaluate(
         areas,
         &ContactOptions::default(),
     );
-    let q = quality::grasp_quality(&cs.contacts, mu, &part.centre_of_mass, part.max_radius);
+    let q = quality::grasp_epsilon(&cs.contacts, mu, &part.centre_of_mass, part.max_radius);
     (cs, q)
 }
 
@@ -248,6 +249,13 @@ pub fn run_scene(scene: &Scene, hand: &dyn PosableHand, quiet: bool) -> Result<G
     let mut pts = Vec::new();
     let areas = vertex_areas(hand.rest_mesh());
     let (cs, q) = evaluate(hand, &part, &pose, scene.friction, &areas, &mut pts);
+    let volume = quality::grasp_quality(
+        &cs.contacts,
+        scene.friction,
+        &part.centre_of_mass,
+        part.max_radius,
+    )
+    .volume;
     let hand_mesh = TriMesh {
         vertices: pts,
         faces: hand.rest_mesh().faces.clone(),
@@ -296,7 +304,7 @@ pub fn run_scene(scene: &Scene, hand: &dyn PosableHand, quiet: bool) -> Result<G
         pose_deg,
         force_closure: q.force_closure,
         epsilon: q.epsilon,
-        volume: q.volume,
+        volume,
         holds: ht.holds,
         hold_test: ht,
         contacts: cs.contacts.clone(),
