@@ -349,3 +349,88 @@ fn template_writes_mesh_spec_and_picture() {
     assert_eq!(m.n_faces(), 37_024);
     m.check_closed_manifold().unwrap();
 }
+
+/// `ergohand grasp` as a product designer runs it: the shipped bottle scene (given approach)
+/// writes `grasp.json` with the issue's keys, a GLB whose hand and part carry the contact map
+/// as vertex colours, and a PNG; a scene with an unknown grasp type or a part in metres gets a
+/// one-line error or a warning naming the scene, the field and the value, and writes nothing.
+#[test]
+fn grasp_writes_report_glb_and_map_and_refuses_bad_scenes() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("bottle");
+    let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/bottle.toml");
+    let o = ergohand(&[
+        "grasp",
+        scene.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--quiet",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(o.stderr.is_empty(), "--quiet: {}", stderr(&o));
+    let r: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out.join("grasp.json")).unwrap()).unwrap();
+    assert_eq!(r["force_closure"], true);
+    assert_eq!(r["holds"], true);
+    assert!(r["epsilon"].as_f64().unwrap() > 0.0 && r["volume"].as_f64().unwrap() > 0.0);
+    let contacts = r["contacts"].as_array().unwrap();
+    let areas = r["contact_area_mm2"].as_object().unwrap();
+    assert!(contacts.len() >= 3);
+    // Every contact's link has an area, and the areas add up to the total.
+    for c in contacts {
+        assert!(areas.contains_key(c["link"].as_str().unwrap()), "{c}");
+    }
+    let sum: f64 = areas.values().map(|a| a.as_f64().unwrap()).sum();
+    let total = r["total_contact_area_mm2"].as_f64().unwrap();
+    assert!((sum - total).abs() < 1e-6 * total.max(1.0), "{sum} vs {total}");
+    // The GLB: every mesh primitive has one colour per vertex.
+    let glb = gltf::Gltf::open(out.join("grasp.glb")).unwrap();
+    let mut coloured = 0;
+    for mesh in glb.meshes() {
+        for p in mesh.primitives() {
+            let n = p.get(&gltf::Semantic::Positions).unwrap().count();
+            let c = p.get(&gltf::Semantic::Colors(0)).expect("COLOR_0");
+            assert_eq!(c.count(), n);
+            coloured += 1;
+        }
+    }
+    assert!(coloured >= 2, "hand and part");
+    let png = std::fs::read(out.join("contact_map.png")).unwrap();
+    assert_eq!(&png[..8], b"\x89PNG\r\n\x1a\n");
+
+    // An unknown grasp type: the scene, the field and the value, nothing written.
+    let stl = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/bottle.stl");
+    let bad = dir.path().join("bad.toml");
+    let text = |units: &str, kind: &str| {
+        format!(
+            "[part]\nfile = {:?}\nunits = \"{units}\"\nfriction = 0.5\nmass_g = 500\n\n\
+             [grasp]\ntype = \"{kind}\"\napproach = {{ translation_mm = [-35, -42, 90], rotation_deg = [-90, -90, 0] }}\n",
+            stl.to_str().unwrap()
+        )
+    };
+    std::fs::write(&bad, text("mm", "grip")).unwrap();
+    let out_bad = dir.path().join("bad-out");
+    let args = [
+        "grasp",
+        bad.to_str().unwrap(),
+        "--out",
+        out_bad.to_str().unwrap(),
+    ];
+    let o = ergohand(&args);
+    assert_eq!(o.status.code(), Some(1));
+    let line = error_line(&o);
+    assert!(
+        line.contains("bad.toml") && line.contains("type") && line.contains("grip"),
+        "{line}"
+    );
+    assert!(!out_bad.exists(), "nothing written on bad input");
+    // The bottle read as metres is 1000 times a hand: a warning naming its size.
+    std::fs::write(&bad, text("m", "power")).unwrap();
+    let o = ergohand(&args);
+    let e = stderr(&o);
+    assert!(
+        e.lines()
+            .any(|l| l.contains("warning") && l.contains("bad.toml") && l.contains(" m")),
+        "{e}"
+    );
+}

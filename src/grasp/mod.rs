@@ -199,7 +199,8 @@ pub struct GraspOutcome {
 /// Distances shown by the contact map's colour ramp, mm.
 pub const COLOUR_RANGE_MM: f64 = 10.0;
 
-/// Evaluate a scene with `hand` (see [`grasp_command`]).
+/// Evaluate a scene with `hand` (see [`grasp_command`]); the part's warnings (open mesh,
+/// size against a hand) go to stderr as soon as the part is read, unless `quiet`.
 pub fn run_scene(scene: &Scene, hand: &dyn PosableHand, quiet: bool) -> Result<GraspOutcome> {
     let mut timings = Timings::default();
     let started = std::time::Instant::now();
@@ -212,6 +213,13 @@ pub fn run_scene(scene: &Scene, hand: &dyn PosableHand, quiet: bool) -> Result<G
             scene.path.display(),
             scene.part_file.display()
         );
+    }
+    // Shown now, not with the results: a part in the wrong units usually ends the scene with
+    // an error (the hand starts inside it), and the warning is what explains it.
+    if !quiet {
+        for w in &warnings {
+            eprintln!("warning: {w}");
+        }
     }
     timings.part_s = clock.elapsed().as_secs_f64();
     let plan = grasp_plan(scene.grasp);
@@ -427,11 +435,6 @@ pub fn grasp_command(
     let model = model.map(Path::to_path_buf).or(s.hand_model.clone());
     let hand = load_hand(model.as_deref(), s.side)?;
     let o = run_scene(&s, &hand, quiet)?;
-    if !quiet {
-        for w in &o.report.warnings {
-            eprintln!("warning: {w}");
-        }
-    }
     write_outputs(&o, out)?;
     Ok(o.report)
 }
