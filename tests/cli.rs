@@ -382,7 +382,10 @@ fn grasp_writes_report_glb_and_map_and_refuses_bad_scenes() {
     }
     let sum: f64 = areas.values().map(|a| a.as_f64().unwrap()).sum();
     let total = r["total_contact_area_mm2"].as_f64().unwrap();
-    assert!((sum - total).abs() < 1e-6 * total.max(1.0), "{sum} vs {total}");
+    assert!(
+        (sum - total).abs() < 1e-6 * total.max(1.0),
+        "{sum} vs {total}"
+    );
     // The GLB: every mesh primitive has one colour per vertex.
     let glb = gltf::Gltf::open(out.join("grasp.glb")).unwrap();
     let mut coloured = 0;

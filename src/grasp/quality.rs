@@ -312,12 +312,7 @@ impl Hull {
     /// [`JOGGLE`] and 100 and 10,000 times larger (qhull retries `QJ` the same way) until the
     /// construction succeeds and the hull passes its convexity check.
     pub fn new(input: &[Vector6<f64>]) -> Option<Hull> {
-        if !spans_6d(input) {
-            return None;
-        }
-        [1.0, 1e2, 1e4]
-            .into_iter()
-            .find_map(|m| Hull::build(input, JOGGLE * m))
+        with_joggles(input, Hull::build)
     }
 
     /// The distance from the origin to the nearest facet of the hull of `input` when the
@@ -337,12 +332,7 @@ impl Hull {
     /// `P` and the search goes on. Only facets near the origin are ever refined: a grasp wrench
     /// space of 248 wrenches has about 29,000 facets, this builds a few hundred.
     pub fn nearest_offset(input: &[Vector6<f64>]) -> Option<f64> {
-        if !spans_6d(input) {
-            return None;
-        }
-        [1.0, 1e2, 1e4]
-            .into_iter()
-            .find_map(|m| Hull::expand_nearest(input, JOGGLE * m))
+        with_joggles(input, Hull::expand_nearest)
     }
 
     fn expand_nearest(input: &[Vector6<f64>], joggle: f64) -> Option<f64> {
@@ -657,11 +647,24 @@ impl Hull {
     }
 }
 
-/// Whether `input` spans 6-D, tested on the raw points (the joggle must not invent a sixth
-/// dimension).
-fn spans_6d(input: &[Vector6<f64>]) -> bool {
+/// `construct` on `input` joggled by [`JOGGLE`], then 100 and 10,000 times more until it
+/// succeeds (qhull retries `QJ` the same way); `None` when `input` does not span 6-D, which is
+/// tested on the raw points (the joggle must not invent a sixth dimension).
+fn with_joggles<T>(
+    input: &[Vector6<f64>],
+    construct: impl Fn(&[Vector6<f64>], f64) -> Option<T>,
+) -> Option<T> {
     let scale = input.iter().map(|p| p.amax()).fold(0.0, f64::max);
-    input.len() > D && scale > 0.0 && initial_simplex(input, 1e-9 * scale).is_some()
+    if input.len() <= D
+        || scale.is_nan()
+        || scale <= 0.0
+        || initial_simplex(input, 1e-9 * scale).is_none()
+    {
+        return None;
+    }
+    [1.0, 1e2, 1e4]
+        .into_iter()
+        .find_map(|m| construct(input, JOGGLE * m))
 }
 
 /// Six affinely independent points spanning the largest simplex found greedily (the two
