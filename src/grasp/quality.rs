@@ -14,7 +14,13 @@
 //! permissively licensed Rust crate computes d > 3 hulls (qhull's bindings carry the qhull
 //! licence and a C build). Input points are joggled by a deterministic [`JOGGLE`] relative
 //! perturbation (qhull's `QJ`) so that the points are in general position and every facet is a
-//! simplex; this moves epsilon and volume by about 1e-7 relative.
+//! simplex; this moves epsilon and volume by about 1e-7 relative (a retry with a larger joggle,
+//! needed when round-off breaks a hull of tens of thousands of facets, by up to 0.3 %).
+//!
+//! Epsilon alone ([`epsilon`], what a grasp evaluation needs) does not need the whole hull: a
+//! nearest-facet search ([`Hull::nearest_offset`], the expanding polytope idea) refines only the
+//! facets near the origin, a few hundred instead of about 29,000 for 31 contacts, and gives the
+//! whole hull's epsilon on the same joggled points. The volume quality needs every facet.
 
 use super::contact::Contact;
 use crate::geometry::{Point, Vec3};
