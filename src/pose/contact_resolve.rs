@@ -117,20 +117,39 @@ pub fn resolve_finger_contacts(
     opts: &ResolveOptions,
 ) -> Resolved {
     let binding = hand.binding();
+    let skin = |p: &Pose| -> std::result::Result<Vec<Point>, std::convert::Infallible> {
+        Ok(binding.apply(method, &link_transforms(&hand.skeleton, p)))
+    };
+    match resolve_finger_contacts_on(hand, pose, skin, opts) {
+        Ok(r) => r,
+        Err(never) => match never {},
+    }
+}
+
+/// [`resolve_finger_contacts`] on the skin `skin` makes of a pose (for example the skin with
+/// the segment-volume correction, [`super::VolumeRig::corrected_skin`], whose swelling would
+/// otherwise push digits that were just apart back into each other). The skin moves with the
+/// pose only through `skin`; the step's linearisation still carries the contact points
+/// rigidly on their links.
+pub fn resolve_finger_contacts_on<E>(
+    hand: &IndividualHand,
+    pose: &Pose,
+    skin: impl Fn(&Pose) -> std::result::Result<Vec<Point>, E>,
+    opts: &ResolveOptions,
+) -> std::result::Result<Resolved, E> {
     let dom = dominant_links(&hand.weights);
-    let measure = |p: &Pose| -> (Penetration, Vec<Point>) {
-        let t = link_transforms(&hand.skeleton, p);
+    let measure = |p: &Pose| -> std::result::Result<(Penetration, Vec<Point>), E> {
         let posed = TriMesh {
-            vertices: binding.apply(method, &t),
+            vertices: skin(p)?,
             faces: hand.skin.faces.clone(),
         };
-        (
+        Ok((
             finger_penetration(&posed, &hand.weights, opts.max_depth_mm),
             posed.vertices,
-        )
+        ))
     };
     let mut cur = pose.clone();
-    let (mut pen, mut posed) = measure(&cur);
+    let (mut pen, mut posed) = measure(&cur)?;
     let depth_before_mm = pen.depth_mm;
     let mut iterations = 0;
     while pen.depth_mm > opts.tolerance_mm && iterations < opts.max_iterations {
@@ -175,7 +194,7 @@ pub fn resolve_finger_contacts(
             }
         }
         cur = clamp_pose(&cur).0;
-        (pen, posed) = measure(&cur);
+        (pen, posed) = measure(&cur)?;
     }
     let changes_deg = Joint::ALL
         .iter()
@@ -185,11 +204,11 @@ pub fn resolve_finger_contacts(
             d.iter().any(|x| *x != 0.0).then_some((j, d))
         })
         .collect();
-    Resolved {
+    Ok(Resolved {
         pose: cur,
         depth_before_mm,
         depth_after_mm: pen.depth_mm,
         iterations,
         changes_deg,
-    }
+    })
 }

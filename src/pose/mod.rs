@@ -55,7 +55,9 @@ pub mod skinning;
 pub mod volume_correction;
 pub mod weights;
 
-pub use contact_resolve::{resolve_finger_contacts, ResolveOptions, Resolved};
+pub use contact_resolve::{
+    resolve_finger_contacts, resolve_finger_contacts_on, ResolveOptions, Resolved,
+};
 pub use hand::IndividualHand;
 pub use harmonic_weights::{pose_tet_nodes, tet_node_weights};
 pub use pose_file::{named_pose, parse_pose_toml, read_pose_file, resolve_pose, NAMED_POSES};
@@ -131,9 +133,9 @@ pub fn pose_command(
 /// `.obj` of a folder without `tet.vtk` is plain DQS, with a warning.
 ///
 /// Unless `opts.resolve_contacts` is off, the angles then give way where the digits of this
-/// hand would enter each other by more than 1 mm ([`resolve_finger_contacts`], with the
-/// skinning the output uses: LBS for `.glb`, which viewers skin linearly, DQS otherwise), with
-/// a warning per changed joint.
+/// hand would enter each other by more than 1 mm, on the skin the output has: LBS for `.glb`,
+/// which viewers skin linearly, DQS for a plain `.obj`, DQS with the volume correction
+/// otherwise ([`resolve_finger_contacts_on`]), with a warning per changed joint.
 pub fn pose_command_with(
     model_dir: &Path,
     pose_arg: &str,
@@ -163,14 +165,8 @@ pub fn pose_command_with(
     } else {
         Skinning::DualQuaternion
     };
-    let (pose, resolved_depth_mm) = if opts.resolve_contacts {
-        let r = resolve_finger_contacts(&hand, &pose, method, &ResolveOptions::default());
-        warnings.extend(r.describe().into_iter().map(|w| format!("{pose_arg}: {w}")));
-        (r.pose, Some(r.depth_after_mm))
-    } else {
-        (pose, None)
-    };
-    let baked = if ext.as_deref() == Some("glb") {
+    // The tetrahedral mesh is needed for a volume-kept skin and for a posed mesh.
+    let rig = if ext.as_deref() == Some("glb") {
         None
     } else if !opts.preserve_volume && ext.as_deref() == Some("obj") {
         // The plain DQS skin needs no tetrahedral mesh.
@@ -183,28 +179,48 @@ pub fn pose_command_with(
         ));
         None
     } else {
-        let rig = volume_rig(&hand, model_dir)?;
-        let posed = rig.pose(
-            &hand,
-            &pose,
-            opts.preserve_volume,
-            &VolumeOptions::default(),
-        )?;
-        log.info(if opts.preserve_volume {
-            format!(
-                "segment volumes: worst finger segment {:+.1} % after the bulge correction \
-                 ({} Newton steps; dual-quaternion skinning alone: {:.1} %)",
-                100.0 * signed_worst(&posed.volume_changes),
-                posed.correction.iterations,
-                100.0 * posed.correction.worst_before,
-            )
-        } else {
-            format!(
-                "segment volumes: worst finger segment {:+.1} % (dual-quaternion skinning alone)",
-                100.0 * signed_worst(&posed.volume_changes)
-            )
-        });
-        Some((rig.tets, posed))
+        Some(volume_rig(&hand, model_dir)?)
+    };
+    let volume_opts = VolumeOptions::default();
+    let (pose, resolved_depth_mm) = if opts.resolve_contacts {
+        let resolve = ResolveOptions::default();
+        // On the skin that is written: the volume correction swells the fingers at their
+        // joints, which would push digits just set apart back into each other.
+        let r = match &rig {
+            Some(rig) if opts.preserve_volume => resolve_finger_contacts_on(
+                &hand,
+                &pose,
+                |p| rig.corrected_skin(&hand, p, &volume_opts),
+                &resolve,
+            )?,
+            _ => resolve_finger_contacts(&hand, &pose, method, &resolve),
+        };
+        warnings.extend(r.describe().into_iter().map(|w| format!("{pose_arg}: {w}")));
+        (r.pose, Some(r.depth_after_mm))
+    } else {
+        (pose, None)
+    };
+    let baked = match rig {
+        None => None,
+        Some(rig) => {
+            let posed = rig.pose(&hand, &pose, opts.preserve_volume, &volume_opts)?;
+            log.info(if opts.preserve_volume {
+                format!(
+                    "segment volumes: worst finger segment {:+.1} % after the bulge correction \
+                     ({} Newton steps; dual-quaternion skinning alone: {:.1} %)",
+                    100.0 * signed_worst(&posed.volume_changes),
+                    posed.correction.iterations,
+                    100.0 * posed.correction.worst_before,
+                )
+            } else {
+                format!(
+                    "segment volumes: worst finger segment {:+.1} % (dual-quaternion skinning \
+                     alone)",
+                    100.0 * signed_worst(&posed.volume_changes)
+                )
+            });
+            Some((rig.tets, posed))
+        }
     };
     // Measured on the skin as written: the resolver's figure holds unless the volume
     // correction moved the skin since.

@@ -310,10 +310,51 @@ impl VolumeRig {
         opts: &VolumeOptions,
     ) -> Result<VolumePose> {
         let n = Link::ALL.len();
+        let (skin, mut nodes, mut correction) = self.skin_and_nodes(hand, pose, correct, opts)?;
+        place_boundary_nodes(&self.binding, &skin, &mut nodes)?;
+        let volume_changes = finger_volume_changes(
+            &self.rest_volumes,
+            &segment_volumes(&nodes, &self.tets, &self.labels, n),
+        );
+        // What the result has, boundary placed on the skin included.
+        let worst = volume_changes.iter().map(|c| c.1.abs()).fold(0.0, f64::max);
+        if !correct {
+            correction.worst_before = worst;
+        }
+        correction.worst_after = worst;
+        Ok(VolumePose {
+            skin,
+            nodes,
+            correction,
+            volume_changes,
+        })
+    }
+
+    /// The skin of [`VolumeRig::pose`] with the correction on, without placing the tet mesh's
+    /// boundary (the skin is all a contact check needs: [`super::resolve_finger_contacts_on`]).
+    pub fn corrected_skin(
+        &self,
+        hand: &IndividualHand,
+        pose: &Pose,
+        opts: &VolumeOptions,
+    ) -> Result<Vec<Point>> {
+        Ok(self.skin_and_nodes(hand, pose, true, opts)?.0.vertices)
+    }
+
+    /// Skin and tet nodes skinned by DQS and, if `correct`, moved by the bulge field; the
+    /// nodes' boundary is not yet on the skin.
+    fn skin_and_nodes(
+        &self,
+        hand: &IndividualHand,
+        pose: &Pose,
+        correct: bool,
+        opts: &VolumeOptions,
+    ) -> Result<(TriMesh, Vec<Point>, VolumeCorrection)> {
+        let n = Link::ALL.len();
         let tr = link_transforms(&hand.skeleton, pose);
         let mut skin = hand.posed_skin(pose, Skinning::DualQuaternion);
         let raw = SkinBinding::new(&self.rest_nodes, &self.node_weights, n)?.dual_quaternion(&tr);
-        let (mut nodes, mut correction) = if correct {
+        let (nodes, correction) = if correct {
             let basis = BulgeBasis::new(&raw, &self.node_weights, &hand.skeleton, &tr);
             let c = preserve_segment_volumes(
                 &raw,
@@ -335,22 +376,6 @@ impl VolumeRig {
             };
             (raw, c)
         };
-        place_boundary_nodes(&self.binding, &skin, &mut nodes)?;
-        let volume_changes = finger_volume_changes(
-            &self.rest_volumes,
-            &segment_volumes(&nodes, &self.tets, &self.labels, n),
-        );
-        // What the result has, boundary placed on the skin included.
-        let worst = volume_changes.iter().map(|c| c.1.abs()).fold(0.0, f64::max);
-        if !correct {
-            correction.worst_before = worst;
-        }
-        correction.worst_after = worst;
-        Ok(VolumePose {
-            skin,
-            nodes,
-            correction,
-            volume_changes,
-        })
+        Ok((skin, nodes, correction))
     }
 }
