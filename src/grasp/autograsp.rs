@@ -41,6 +41,11 @@ pub struct GraspPlan {
     /// Longest wrist travel (mm) along the grasp frame's palmar axis before closing, stopping
     /// when the palm touches ([`approach_to_contact`]); 0: the fingers close from the approach.
     pub approach_mm: f64,
+    /// The links that hold the part in this grasp type and must touch it: the distal pads of
+    /// the thumb and the closing fingers in precision grasps (Cutkosky 1989: precision grasps
+    /// hold the part between the pads of the thumb and fingers, off the palm); empty for power
+    /// and lateral grasps, which hold with whatever touches.
+    pub pads: Vec<Link>,
 }
 
 /// The plan of a grasp type (degrees chosen within the anatomical limits; the wrist stays put).
@@ -69,16 +74,23 @@ pub fn grasp_plan(kind: GraspType) -> GraspPlan {
             [[0.0; 3]; 3],
             [[88.0, 0.0, 0.0], [105.0, 0.0, 0.0], [80.0, 0.0, 0.0]],
         ),
+        // The closed posture brings the pads together, 40 mm off the palm: the thumb's distal
+        // link ends within 4 mm of the midpoint of the index and middle distal links (a grid
+        // search over the thumb's range for the template hand), their skins meet, and a part
+        // between the pads is caught by all of them before t = 1 (`pads_meet_when_closed`).
+        // The former closed posture (thumb [40, 58, 25], fingers [75, 70, 40]) curled the
+        // thumb toward the wrist and the fingers into the palm: its pads stayed 40 mm apart
+        // and a pen was held by the thenar and one fingertip.
         GraspType::Precision | GraspType::Pinch | GraspType::Tripod => (
             [[10.0, 50.0, 10.0], [0.0; 3], [0.0; 3]],
-            [[40.0, 58.0, 25.0], [45.0, 0.0, 0.0], [45.0, 0.0, 0.0]],
+            [[35.0, 15.0, 30.0], [20.0, 0.0, 0.0], [0.0; 3]],
             match kind {
                 GraspType::Precision => fingers.to_vec(),
                 GraspType::Pinch => vec![Finger::Index],
                 _ => vec![Finger::Index, Finger::Middle],
             },
             [[15.0, 0.0, 0.0], [10.0, 0.0, 0.0], [0.0; 3]],
-            [[75.0, 0.0, 0.0], [70.0, 0.0, 0.0], [40.0, 0.0, 0.0]],
+            [[60.0, 0.0, 0.0], [50.0, 0.0, 0.0], [30.0, 0.0, 0.0]],
         ),
         GraspType::Lateral => (
             [[-10.0, 0.0, 0.0], [0.0; 3], [0.0; 3]],
@@ -122,6 +134,15 @@ pub fn grasp_plan(kind: GraspType) -> GraspPlan {
         // A power grasp holds the part against the palm (Cutkosky 1989): the wrist comes in
         // until the palm touches. Precision grasps hold it with the fingertips, off the palm.
         approach_mm: if kind == GraspType::Power { 40.0 } else { 0.0 },
+        pads: match kind {
+            GraspType::Power | GraspType::Lateral => Vec::new(),
+            // The thumb with the index and middle (a precision grasp closes all four fingers
+            // but is held by the first two; a pinch closes the index alone).
+            _ => std::iter::once(Finger::Thumb)
+                .chain(closing.iter().copied().take(2))
+                .map(|f| digit_links(f)[2])
+                .collect(),
+        },
     }
 }
 
@@ -659,6 +680,25 @@ pub fn squeeze(
     (pose_at(plan, &t, root), t, report)
 }
 
+/// Where the plan's pads meet: the mean of the centroids of the [`GraspPlan::pads`] links' skin
+/// in the closed posture, in the [`grasp_frame`]; `None` for a plan without pads.
+pub fn pad_point(hand: &dyn PosableHand, plan: &GraspPlan) -> Option<Vec3> {
+    if plan.pads.is_empty() {
+        return None;
+    }
+    let tr = link_transforms(
+        hand.skeleton(),
+        &pose_at(plan, &[1.0; 16], grasp_frame(hand).inverse()),
+    );
+    let mut buf = Vec::new();
+    let mut sum = Vec3::zeros();
+    for l in &plan.pads {
+        hand.pose_link(l.index(), &tr, &mut buf);
+        sum += buf.iter().map(|p| p.coords).sum::<Vec3>() / buf.len().max(1) as f64;
+    }
+    Some(sum / plan.pads.len() as f64)
+}
+
 /// A candidate placement: the grasp frame looks along `-dir` at the part from just outside its
 /// surface, rolled by `roll` about its z axis.
 pub fn placement(part: &PartShape, dir: &Vec3, roll: f64, gap_mm: f64) -> Option<Isometry3<f64>> {
@@ -689,11 +729,39 @@ pub fn placement(part: &PartShape, dir: &Vec3, roll: f64, gap_mm: f64) -> Option
     ))
 }
 
+/// A candidate placement of a precision grasp: the grasp frame oriented as by [`placement`]
+/// (looking along `-dir`, rolled by `roll`) and moved so that the plan's [`pad_point`] `pad`
+/// (grasp frame) lies halfway through the part along `dir` through its centre of mass, where
+/// the pads closing from either side meet it (for a pen seen from its side: on its axis).
+pub fn pad_placement(
+    part: &PartShape,
+    dir: &Vec3,
+    roll: f64,
+    pad: &Vec3,
+) -> Option<Isometry3<f64>> {
+    use parry3d_f64::query::{Ray, RayCast};
+    let entry = placement(part, dir, roll, 0.0)?;
+    let d = dir.try_normalize(1e-12)?;
+    let far = part.centre_of_mass - d * (part.max_radius + 50.0);
+    let ray = Ray::new(
+        super::contact::pv(&far),
+        super::contact::pv(&Point::from(d)),
+    );
+    let exit = far + d * part.shape.cast_local_ray(&ray, f64::MAX, false)?;
+    let centre = Point::from((entry.translation.vector + exit.coords) / 2.0);
+    Some(Isometry3::from_parts(
+        Translation3::from(centre.coords - entry.rotation * pad),
+        entry.rotation,
+    ))
+}
+
 /// Result of [`placement_search`].
 #[derive(Clone, Debug)]
 pub struct PlacementResult {
     /// Best approach (grasp frame in the part's world frame).
     pub approach: Isometry3<f64>,
+    /// How many of the plan's [`GraspPlan::pads`] touch the part in it (full evaluation).
+    pub pads_touching: usize,
     /// Its epsilon (full evaluation).
     pub epsilon: f64,
     /// Its volume quality.
@@ -730,7 +798,8 @@ fn starts_deep_inside(
             .any(|p| part.grid.zone(p) == super::broad::Zone::Inside)
 }
 
-/// Quality of the hand closed by `opts` from `root`: (epsilon, volume, contact area), the
+/// Quality of the hand closed by `opts` from `root`: (pads of the plan touching, epsilon,
+/// volume, contact area), the
 /// contacts measured on every `stride`-th skin vertex (each standing for `stride` vertices'
 /// area) and the friction cones linearised with `edges` edges; `None` when the autograsp
 /// refuses the start.
@@ -744,7 +813,7 @@ fn closed_quality(
     opts: &AutograspOptions,
     sample: &(Vec<usize>, Vec<usize>, Vec<f64>),
     edges: usize,
-) -> Option<(f64, f64, f64)> {
+) -> Option<(usize, f64, f64, f64)> {
     let g = autograsp(hand, part, plan, root, opts).ok()?;
     let mut pts = Vec::new();
     hand.pose_vertices(&g.pose, &mut pts);
@@ -759,7 +828,8 @@ fn closed_quality(
         edges,
     );
     let q = super::quality::quality(&w);
-    Some((q.epsilon, q.volume, c.total_area_mm2()))
+    let pads = plan.pads.iter().filter(|l| c.touches(l.index())).count();
+    Some((pads, q.epsilon, q.volume, c.total_area_mm2()))
 }
 
 /// Every `stride`-th skin vertex: (indices, links, areas scaled to stand for the skipped).
@@ -773,7 +843,13 @@ fn skin_sample(hand: &dyn PosableHand, stride: usize) -> (Vec<usize>, Vec<usize>
 
 /// Placement search: `candidates` seeded random placements (directions uniform on the sphere,
 /// rolls uniform), screened cheaply, the best few evaluated in full; the result is the best of
-/// the full evaluations by (epsilon, volume, contact area).
+/// the full evaluations by (pads touching, epsilon, volume, contact area).
+///
+/// A plan without [`GraspPlan::pads`] (power, lateral) is placed with the palm 3 mm off the
+/// part ([`placement`]); a precision plan with its [`pad_point`] in the part
+/// ([`pad_placement`]), and its candidates rank first by how many of its pads touch the part:
+/// a precision grasp is one held by the pads (Cutkosky 1989), and epsilon alone preferred a
+/// tripod held by the thenar and one fingertip, which is force closure but drops the pen.
 ///
 /// Screening (parallel, stops early at `time_limit_s`): a placement where a skin vertex is deep
 /// inside the part at the preshape is rejected by the voxel grid (every vertex); the others are
@@ -820,11 +896,17 @@ pub fn placement_search(
     };
     let started = std::time::Instant::now();
     let coarse_sample = skin_sample(hand, SCREEN_STRIDE);
-    type Score = (usize, f64, f64, f64);
-    let root_of = |i: usize| Some(placement(part, &cand[i].0, cand[i].1, 3.0)? * gf.inverse());
+    // (candidate, pads touching, epsilon, volume, contact area)
+    type Score = (usize, usize, f64, f64, f64);
+    let pad = pad_point(hand, plan);
+    let approach_of = |i: usize| match &pad {
+        Some(p) => pad_placement(part, &cand[i].0, cand[i].1, p),
+        None => placement(part, &cand[i].0, cand[i].1, 3.0),
+    };
+    let root_of = |i: usize| Some(approach_of(i)? * gf.inverse());
     let score = |i: usize, root, opts: &AutograspOptions, sample: &_, edges| {
-        let (e, v, a) = closed_quality(hand, part, plan, mu, root, opts, sample, edges)?;
-        Some((i, e, v, a))
+        let (n, e, v, a) = closed_quality(hand, part, plan, mu, root, opts, sample, edges)?;
+        Some((i, n, e, v, a))
     };
     let scored: Vec<Option<Score>> = cand
         .par_iter()
@@ -843,9 +925,10 @@ pub fn placement_search(
         .collect();
     bar.finish_and_clear();
     let better = |a: &Score, b: &Score| {
-        a.1.total_cmp(&b.1)
+        a.1.cmp(&b.1)
             .then(a.2.total_cmp(&b.2))
             .then(a.3.total_cmp(&b.3))
+            .then(a.4.total_cmp(&b.4))
             .then(b.0.cmp(&a.0))
     };
     let evaluated = scored.iter().filter(|s| s.is_some()).count();
@@ -875,11 +958,11 @@ pub fn placement_search(
         );
     }
     let best = finals.into_iter().max_by(better)?;
-    let (d, roll) = cand[best.0];
     Some(PlacementResult {
-        approach: placement(part, &d, roll, 3.0)?,
-        epsilon: best.1,
-        volume: best.2,
+        approach: approach_of(best.0)?,
+        pads_touching: best.1,
+        epsilon: best.2,
+        volume: best.3,
         evaluated,
     })
 }
@@ -940,6 +1023,50 @@ mod tests {
                 assert!(v.is_empty(), "{g:?}: {v:?}");
             }
         }
+    }
+
+    /// Closest approach of two links' posed skins, mm (0 when they overlap at a vertex).
+    fn skin_gap(h: &RigidHand, a: Link, b: Link, tr: &[Isometry3<f64>]) -> f64 {
+        let (mut pa, mut pb) = (Vec::new(), Vec::new());
+        h.pose_link(a.index(), tr, &mut pa);
+        h.pose_link(b.index(), tr, &mut pb);
+        pa.iter()
+            .flat_map(|p| pb.iter().map(move |q| (p - q).norm()))
+            .fold(f64::MAX, f64::min)
+    }
+
+    /// The precision plans close the thumb's pad onto the fingers' pads: far apart in the
+    /// preshape (room for a part), meeting in the closed posture (a part between them is
+    /// caught by every pad before the end of the closing).
+    #[test]
+    fn pads_meet_when_closed() {
+        let h = hand();
+        for g in [GraspType::Precision, GraspType::Pinch, GraspType::Tripod] {
+            let plan = grasp_plan(g);
+            let fingers = if g == GraspType::Pinch { 1 } else { 2 };
+            assert_eq!(plan.pads.len(), 1 + fingers, "{g:?}");
+            assert_eq!(plan.pads[0], Link::TDist);
+            for t in [0.0, 1.0] {
+                let tr = link_transforms(
+                    &h.skeleton,
+                    &pose_at(&plan, &[t; 16], Isometry3::identity()),
+                );
+                for &l in &plan.pads[1..] {
+                    let d = skin_gap(h, Link::TDist, l, &tr);
+                    if t == 0.0 {
+                        assert!(
+                            d > 60.0,
+                            "{g:?} preshape: T_DIST {} mm from {}",
+                            d,
+                            l.name()
+                        );
+                    } else {
+                        assert!(d < 1.0, "{g:?} closed: T_DIST {} mm from {}", d, l.name());
+                    }
+                }
+            }
+        }
+        assert!(grasp_plan(GraspType::Power).pads.is_empty());
     }
 
     #[test]
@@ -1025,6 +1152,21 @@ mod tests {
         let g = autograsp(h, bottle(), &plan, root, &AutograspOptions::default()).unwrap();
         let active = plan.active.iter().filter(|&&a| a).count();
         assert_eq!(g.untouched.len(), active);
-        assert!(g.t.iter().zip(plan.active).all(|(&t, a)| !a || t == 1.0));
+        // Every active joint closes fully, unless its digit was stopped by another finger:
+        // the pinch closes the thumb's pad onto the index's, so they meet in the air.
+        let stopped: Vec<Finger> = g
+            .collisions
+            .iter()
+            .filter_map(|c| Link::from_name(&c.link)?.joint()?.finger())
+            .collect();
+        for j in Joint::ALL {
+            let free = j.finger().is_none_or(|f| !stopped.contains(&f));
+            if plan.active[j.index()] && free {
+                assert_eq!(g.t[j.index()], 1.0, "{}: {:?}", j.name(), g.collisions);
+            }
+        }
+        assert!(stopped
+            .iter()
+            .all(|&f| f == Finger::Thumb || f == Finger::Index));
     }
 }

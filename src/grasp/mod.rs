@@ -264,6 +264,21 @@ pub fn run_scene(scene: &Scene, hand: &dyn PosableHand, quiet: bool) -> Result<G
         part.max_radius,
     )
     .volume;
+    let dry: Vec<&str> = plan
+        .pads
+        .iter()
+        .filter(|l| !cs.touches(l.index()))
+        .map(|l| l.name())
+        .collect();
+    if !dry.is_empty() {
+        warnings.push(format!(
+            "{}: grasp.type = {}: the pads {} do not touch the part, so it is not held as a {} grasp",
+            scene.path.display(),
+            scene.grasp.name(),
+            dry.join(", "),
+            scene.grasp.name()
+        ));
+    }
     let hand_mesh = TriMesh {
         vertices: pts,
         faces: hand.rest_mesh().faces.clone(),
@@ -553,5 +568,31 @@ mod tests {
             "{}",
             r.max_penetration_mm
         );
+    }
+
+    /// The shipped pen scene (a 9 mm pen, tripod, placement search) is a real tripod: the pen
+    /// is held between the thumb, index and middle distal pads, each pressed in by the
+    /// squeeze, off the palm, and it holds in rapier in all six directions.
+    #[test]
+    fn shipped_pen_scene_is_a_tripod_that_holds() {
+        let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/pen.toml");
+        let s = scene::read_scene(&path).unwrap();
+        let o = run_scene(&s, hand(), true).unwrap();
+        let r = &o.report;
+        let area = |l: &str| r.contact_area_mm2.get(l).copied().unwrap_or(0.0);
+        for pad in ["T_DIST", "I_DIST", "M_DIST"] {
+            assert!(area(pad) > 0.0, "{pad}: {:?}", r.contact_area_mm2);
+            let depth = r.squeeze.depth_mm.get(pad).copied().unwrap_or(0.0);
+            assert!(
+                depth > autograsp::SQUEEZE_MM / 2.0,
+                "{pad} pressed {depth} mm"
+            );
+        }
+        for off in ["PALM", "T_META", "T_PROX"] {
+            assert_eq!(area(off), 0.0, "{off}: {:?}", r.contact_area_mm2);
+        }
+        assert!(r.warnings.is_empty(), "{:?}", r.warnings);
+        assert!(r.force_closure && r.epsilon > 0.0, "{}", r.epsilon);
+        assert!(r.holds, "{:?}", r.hold_test);
     }
 }
