@@ -768,6 +768,9 @@ pub struct PlacementResult {
     pub volume: f64,
     /// Candidates screened (not rejected, within the time bound).
     pub evaluated: usize,
+    /// The other finalists' approaches, best first (for a caller that rejects the best, e.g.
+    /// by the hold test).
+    pub runners_up: Vec<Isometry3<f64>>,
 }
 
 /// Skin vertex stride of the placement search's screening (closing checks and contacts).
@@ -801,8 +804,8 @@ fn starts_deep_inside(
 /// Quality of the hand closed by `opts` from `root`: (pads of the plan touching, epsilon,
 /// volume, contact area), the
 /// contacts measured on every `stride`-th skin vertex (each standing for `stride` vertices'
-/// area) and the friction cones linearised with `edges` edges; `None` when the autograsp
-/// refuses the start.
+/// area) and the friction cones linearised with `edges` edges; with `squeezed`, measured after
+/// the [`squeeze`], as the scene is. `None` when the autograsp refuses the start.
 #[allow(clippy::too_many_arguments)]
 fn closed_quality(
     hand: &dyn PosableHand,
@@ -813,20 +816,29 @@ fn closed_quality(
     opts: &AutograspOptions,
     sample: &(Vec<usize>, Vec<usize>, Vec<f64>),
     edges: usize,
+    squeezed: bool,
 ) -> Option<(usize, f64, f64, f64)> {
     let g = autograsp(hand, part, plan, root, opts).ok()?;
+    let pose = if squeezed {
+        squeeze(hand, part, plan, &g, opts).0
+    } else {
+        g.pose
+    };
     let mut pts = Vec::new();
-    hand.pose_vertices(&g.pose, &mut pts);
+    hand.pose_vertices(&pose, &mut pts);
     let (idx, links, areas) = sample;
     let pts: Vec<Point> = idx.iter().map(|&i| pts[i]).collect();
     let c = super::contact::contacts(part, &pts, links, areas, &opts.contact);
-    let w = super::quality::cone_wrenches(
-        &c.contacts,
-        mu,
-        &part.centre_of_mass,
-        part.max_radius,
-        edges,
-    );
+    // A precision grasp is scored by its pads alone: the other links (tucked fingers, palm)
+    // are not closed onto the part and press it with no controlled force, and their contacts
+    // far along a pen's length inflated epsilon for grasps whose pads did not oppose.
+    let held: Vec<super::contact::Contact> = c
+        .contacts
+        .iter()
+        .filter(|k| plan.pads.is_empty() || plan.pads.iter().any(|l| l.index() == k.link_index))
+        .cloned()
+        .collect();
+    let w = super::quality::cone_wrenches(&held, mu, &part.centre_of_mass, part.max_radius, edges);
     let q = super::quality::quality(&w);
     let pads = plan.pads.iter().filter(|l| c.touches(l.index())).count();
     Some((pads, q.epsilon, q.volume, c.total_area_mm2()))
@@ -855,9 +867,9 @@ fn skin_sample(hand: &dyn PosableHand, stride: usize) -> (Vec<usize>, Vec<usize>
 /// inside the part at the preshape is rejected by the voxel grid (every vertex); the others are
 /// closed by a coarse autograsp (steps of 0.1, every [`SCREEN_STRIDE`]-th vertex) and scored
 /// with contacts on the same vertices and friction cones of [`SCREEN_CONE_EDGES`] edges (a lower
-/// bound of the full epsilon). The [`FINALISTS`] best are closed by the default autograsp and
-/// scored by the full model (every vertex, [`super::quality::CONE_EDGES`] edges), as the scene
-/// evaluation will; a candidate whose full autograsp refuses the start (a vertex 2 to 3 mm
+/// bound of the full epsilon). The [`FINALISTS`] best are closed by the default autograsp,
+/// squeezed ([`squeeze`]) and scored by the full model (every vertex,
+/// [`super::quality::CONE_EDGES`] edges), as the scene evaluation will; a candidate whose full autograsp refuses the start (a vertex 2 to 3 mm
 /// inside, which the grid and the thinned check can miss) is replaced by the next.
 /// Deterministic for a seed when the time bound is not reached.
 #[allow(clippy::too_many_arguments)]
@@ -904,8 +916,9 @@ pub fn placement_search(
         None => placement(part, &cand[i].0, cand[i].1, 3.0),
     };
     let root_of = |i: usize| Some(approach_of(i)? * gf.inverse());
-    let score = |i: usize, root, opts: &AutograspOptions, sample: &_, edges| {
-        let (n, e, v, a) = closed_quality(hand, part, plan, mu, root, opts, sample, edges)?;
+    let score = |i: usize, root, opts: &AutograspOptions, sample: &_, edges, squeezed| {
+        let (n, e, v, a) =
+            closed_quality(hand, part, plan, mu, root, opts, sample, edges, squeezed)?;
         Some((i, n, e, v, a))
     };
     let scored: Vec<Option<Score>> = cand
@@ -920,7 +933,7 @@ pub fn placement_search(
             if starts_deep_inside(hand, part, plan, root, buf) {
                 return None;
             }
-            score(i, root, &coarse, &coarse_sample, SCREEN_CONE_EDGES)
+            score(i, root, &coarse, &coarse_sample, SCREEN_CONE_EDGES, false)
         })
         .collect();
     bar.finish_and_clear();
@@ -952,18 +965,24 @@ pub fn placement_search(
                         &full,
                         &full_sample,
                         super::quality::CONE_EDGES,
+                        true,
                     )
                 })
                 .collect::<Vec<Score>>(),
         );
     }
-    let best = finals.into_iter().max_by(better)?;
+    finals.sort_by(|a, b| better(b, a));
+    let best = *finals.first()?;
     Some(PlacementResult {
         approach: approach_of(best.0)?,
         pads_touching: best.1,
         epsilon: best.2,
         volume: best.3,
         evaluated,
+        runners_up: finals[1..]
+            .iter()
+            .filter_map(|s| approach_of(s.0))
+            .collect(),
     })
 }
 
@@ -1067,6 +1086,26 @@ mod tests {
             }
         }
         assert!(grasp_plan(GraspType::Power).pads.is_empty());
+    }
+
+    /// Seen from the side of the bottle (a solid of revolution about z), the chord through its
+    /// centre of mass is centred on the axis: the pad point lands on the centre of mass, and
+    /// the grasp frame looks along the search direction.
+    #[test]
+    fn pad_placement_puts_the_pad_point_mid_part() {
+        let part = bottle();
+        let pad = Vec3::new(14.0, 50.0, 40.0);
+        for (dir, roll) in [(Vec3::x(), 0.3), (Vec3::new(-1.0, 1.0, 0.0), 2.0)] {
+            let a = pad_placement(part, &dir, roll, &pad).unwrap();
+            let at = a * Point::from(pad);
+            assert!(
+                (at - part.centre_of_mass).norm() < 0.5,
+                "{at} vs {}",
+                part.centre_of_mass
+            );
+            let z = a.rotation * Vec3::z();
+            assert!((z + dir.normalize()).norm() < 1e-9, "{z}");
+        }
     }
 
     #[test]

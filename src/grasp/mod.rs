@@ -131,6 +131,9 @@ pub struct GraspReport {
     /// The squeeze after contact ([`autograsp::squeeze`]): the posture measured and tested is
     /// the squeezed one.
     pub squeeze: autograsp::Squeeze,
+    /// Placements of the search closed and hold-tested: its best, then its runners-up while the
+    /// hold test failed (0 for a given approach).
+    pub placement_tries: usize,
     /// Active joints whose link never touched.
     pub untouched_joints: Vec<String>,
     /// Closing links stopped by another finger (finger-finger collision) before the part.
@@ -170,7 +173,8 @@ pub struct PartInfo {
 pub struct Timings {
     /// Reading the part and building its query structures.
     pub part_s: f64,
-    /// Placement search (0 for a given approach).
+    /// Placement search (0 for a given approach), with the closing and hold test of its
+    /// finalists rejected by the hold test.
     pub search_s: f64,
     /// The autograsp from the approach.
     pub autograsp_s: f64,
@@ -199,6 +203,73 @@ pub struct GraspOutcome {
 /// Distances shown by the contact map's colour ramp, mm.
 pub const COLOUR_RANGE_MM: f64 = 10.0;
 
+/// One grasp of a scene from one approach: closed, squeezed, measured and hold-tested.
+struct Attempt {
+    approach: nalgebra::Isometry3<f64>,
+    g: autograsp::Autograsp,
+    pose: crate::skeleton::Pose,
+    squeezed: autograsp::Squeeze,
+    cs: ContactSet,
+    q: quality::Epsilon,
+    hand_mesh: TriMesh,
+    finger_entry: f64,
+    hold: hold::HoldReport,
+    timings: Timings,
+}
+
+/// Close `hand` on `part` from `approach` (the grasp frame in the world): [`autograsp`], the
+/// [`autograsp::squeeze`], [`evaluate`], the finger-finger check and the hold test.
+fn grasp_from(
+    scene: &Scene,
+    hand: &dyn PosableHand,
+    part: &PartShape,
+    plan: &autograsp::GraspPlan,
+    approach: &nalgebra::Isometry3<f64>,
+    areas: &[f64],
+) -> Result<Attempt> {
+    let mut timings = Timings::default();
+    let clock = std::time::Instant::now();
+    let root = root_for(hand, &nalgebra::Isometry3::identity(), approach);
+    let opts = AutograspOptions::default();
+    let g = autograsp(hand, part, plan, root, &opts).map_err(|e| e.in_file(&scene.path))?;
+    let (pose, _, squeezed) = autograsp::squeeze(hand, part, plan, &g, &opts);
+    timings.autograsp_s = clock.elapsed().as_secs_f64();
+    let clock = std::time::Instant::now();
+    let mut pts = Vec::new();
+    let (cs, q) = evaluate(hand, part, &pose, scene.friction, areas, &mut pts);
+    let hand_mesh = TriMesh {
+        vertices: pts,
+        faces: hand.rest_mesh().faces.clone(),
+    };
+    let finger_entry = collide::finger_entry(
+        hand,
+        &hand_mesh.vertices,
+        &crate::skeleton::forward_kinematics::link_transforms(hand.skeleton(), &pose),
+    );
+    timings.evaluate_s = clock.elapsed().as_secs_f64();
+    let clock = std::time::Instant::now();
+    let hold = hold::hold_test_hand(
+        hand,
+        &hand_mesh.vertices,
+        part,
+        scene.mass_kg,
+        scene.friction,
+    )?;
+    timings.hold_s = clock.elapsed().as_secs_f64();
+    Ok(Attempt {
+        approach: *approach,
+        g,
+        pose,
+        squeezed,
+        cs,
+        q,
+        hand_mesh,
+        finger_entry,
+        hold,
+        timings,
+    })
+}
+
 /// Evaluate a scene with `hand` (see [`grasp_command`]); the part's warnings (open mesh,
 /// size against a hand) go to stderr as soon as the part is read, unless `quiet`.
 pub fn run_scene(scene: &Scene, hand: &dyn PosableHand, quiet: bool) -> Result<GraspOutcome> {
@@ -224,10 +295,10 @@ pub fn run_scene(scene: &Scene, hand: &dyn PosableHand, quiet: bool) -> Result<G
     timings.part_s = clock.elapsed().as_secs_f64();
     let plan = grasp_plan(scene.grasp);
     let clock = std::time::Instant::now();
-    let approach = match &scene.approach {
-        Approach::Given(a) => scene.part_pose * a,
+    let approaches = match &scene.approach {
+        Approach::Given(a) => vec![scene.part_pose * a],
         Approach::Auto => {
-            autograsp::placement_search(
+            let r = autograsp::placement_search(
                 hand,
                 &part,
                 &plan,
@@ -242,21 +313,53 @@ pub fn run_scene(scene: &Scene, hand: &dyn PosableHand, quiet: bool) -> Result<G
                     &scene.path,
                     "grasp.approach = \"auto\": no placement closed the hand on the part; give an approach",
                 )
-            })?
-            .approach
+            })?;
+            std::iter::once(r.approach).chain(r.runners_up).collect()
         }
     };
     timings.search_s = clock.elapsed().as_secs_f64();
-    let clock = std::time::Instant::now();
-    let root = root_for(hand, &nalgebra::Isometry3::identity(), &approach);
-    let opts = AutograspOptions::default();
-    let g = autograsp(hand, &part, &plan, root, &opts).map_err(|e| e.in_file(&scene.path))?;
-    let (pose, _, squeezed) = autograsp::squeeze(hand, &part, &plan, &g, &opts);
-    timings.autograsp_s = clock.elapsed().as_secs_f64();
-    let clock = std::time::Instant::now();
-    let mut pts = Vec::new();
     let areas = vertex_areas(hand.rest_mesh());
-    let (cs, q) = evaluate(hand, &part, &pose, scene.friction, &areas, &mut pts);
+    // The search's best first; when it does not hold in rapier, its runners-up in turn (the
+    // search ranks by quality, which is blind to how the squeezed part settles), keeping the
+    // first that holds, or the best when none does.
+    let mut tried = Vec::new();
+    for (k, approach) in approaches.iter().enumerate() {
+        let attempt = grasp_from(scene, hand, &part, &plan, approach, &areas);
+        let attempt = match attempt {
+            Ok(a) => a,
+            Err(e) if k == 0 => return Err(e),
+            Err(_) => continue,
+        };
+        let holds = attempt.hold.holds;
+        tried.push(attempt);
+        if holds {
+            break;
+        }
+    }
+    let pick = tried.iter().position(|a| a.hold.holds).unwrap_or(0);
+    let placement_tries = if scene.approach == Approach::Auto {
+        tried.len()
+    } else {
+        0
+    };
+    for a in &tried[..pick] {
+        timings.search_s += a.timings.autograsp_s + a.timings.evaluate_s + a.timings.hold_s;
+    }
+    let Attempt {
+        approach,
+        g,
+        pose,
+        squeezed,
+        cs,
+        q,
+        hand_mesh,
+        finger_entry,
+        hold: ht,
+        timings: own,
+    } = tried.swap_remove(pick);
+    timings.autograsp_s = own.autograsp_s;
+    timings.evaluate_s = own.evaluate_s;
+    timings.hold_s = own.hold_s;
     let volume = quality::grasp_quality(
         &cs.contacts,
         scene.friction,
@@ -279,25 +382,6 @@ pub fn run_scene(scene: &Scene, hand: &dyn PosableHand, quiet: bool) -> Result<G
             scene.grasp.name()
         ));
     }
-    let hand_mesh = TriMesh {
-        vertices: pts,
-        faces: hand.rest_mesh().faces.clone(),
-    };
-    let finger_entry = collide::finger_entry(
-        hand,
-        &hand_mesh.vertices,
-        &crate::skeleton::forward_kinematics::link_transforms(hand.skeleton(), &pose),
-    );
-    timings.evaluate_s = clock.elapsed().as_secs_f64();
-    let clock = std::time::Instant::now();
-    let ht = hold::hold_test_hand(
-        hand,
-        &hand_mesh.vertices,
-        &part,
-        scene.mass_kg,
-        scene.friction,
-    )?;
-    timings.hold_s = clock.elapsed().as_secs_f64();
     let colour_distance = contact::vertex_distances(&part, &hand_mesh.vertices, COLOUR_RANGE_MM)
         .into_iter()
         .map(|r| r.map(|x| x.0))
@@ -337,6 +421,7 @@ pub fn run_scene(scene: &Scene, hand: &dyn PosableHand, quiet: bool) -> Result<G
         max_penetration_mm: cs.max_depth_mm(),
         approach_to_contact_mm: g.approach_mm,
         squeeze: squeezed,
+        placement_tries,
         untouched_joints: g.untouched.clone(),
         finger_collisions: g.collisions.clone(),
         finger_core_entry_mm: finger_entry,
