@@ -802,10 +802,11 @@ fn starts_deep_inside(
 }
 
 /// Quality of the hand closed by `opts` from `root`: (pads of the plan touching, epsilon,
-/// volume, contact area), the
-/// contacts measured on every `stride`-th skin vertex (each standing for `stride` vertices'
-/// area) and the friction cones linearised with `edges` edges; with `squeezed`, measured after
-/// the [`squeeze`], as the scene is. `None` when the autograsp refuses the start.
+/// volume, contact area), the contacts measured on every `stride`-th skin vertex (each standing
+/// for `stride` vertices' area) and the friction cones linearised with `edges` edges; epsilon
+/// and volume of the pads' contacts alone for a plan with [`GraspPlan::pads`]; with `squeezed`,
+/// measured after the [`squeeze`], as the scene is. `None` when the autograsp refuses the
+/// start.
 #[allow(clippy::too_many_arguments)]
 fn closed_quality(
     hand: &dyn PosableHand,
@@ -859,9 +860,10 @@ fn skin_sample(hand: &dyn PosableHand, stride: usize) -> (Vec<usize>, Vec<usize>
 ///
 /// A plan without [`GraspPlan::pads`] (power, lateral) is placed with the palm 3 mm off the
 /// part ([`placement`]); a precision plan with its [`pad_point`] in the part
-/// ([`pad_placement`]), and its candidates rank first by how many of its pads touch the part:
-/// a precision grasp is one held by the pads (Cutkosky 1989), and epsilon alone preferred a
-/// tripod held by the thenar and one fingertip, which is force closure but drops the pen.
+/// ([`pad_placement`]), its candidates rank first by how many of its pads touch the part, and
+/// its epsilon is that of the pads' contacts: a precision grasp is one held by the pads
+/// (Cutkosky 1989), and epsilon of every contact preferred a tripod held by the thenar and one
+/// fingertip, which is force closure but drops the pen.
 ///
 /// Screening (parallel, stops early at `time_limit_s`): a placement where a skin vertex is deep
 /// inside the part at the preshape is rejected by the voxel grid (every vertex); the others are
@@ -869,8 +871,10 @@ fn skin_sample(hand: &dyn PosableHand, stride: usize) -> (Vec<usize>, Vec<usize>
 /// with contacts on the same vertices and friction cones of [`SCREEN_CONE_EDGES`] edges (a lower
 /// bound of the full epsilon). The [`FINALISTS`] best are closed by the default autograsp,
 /// squeezed ([`squeeze`]) and scored by the full model (every vertex,
-/// [`super::quality::CONE_EDGES`] edges), as the scene evaluation will; a candidate whose full autograsp refuses the start (a vertex 2 to 3 mm
-/// inside, which the grid and the thinned check can miss) is replaced by the next.
+/// [`super::quality::CONE_EDGES`] edges), as the scene evaluation will; a candidate whose full
+/// autograsp refuses the start (a vertex 2 to 3 mm inside, which the grid and the thinned
+/// check can miss) is replaced by the next. The finalists come back ranked
+/// ([`PlacementResult::runners_up`]).
 /// Deterministic for a seed when the time bound is not reached.
 #[allow(clippy::too_many_arguments)]
 pub fn placement_search(

@@ -636,14 +636,18 @@ mod tests {
         );
     }
 
+    /// The report of the shipped scene `scenes/NAME.toml` with the default hand.
+    fn shipped(name: &str) -> GraspReport {
+        let path = Path::new(env!("CARGO_MANIFEST_DIR")).join(format!("scenes/{name}.toml"));
+        let s = scene::read_scene(&path).unwrap();
+        run_scene(&s, hand(), true).unwrap().report
+    }
+
     /// The shipped bottle scene (issue 8's 60 mm bottle in a power grasp) reaches force
     /// closure and holds in rapier with the default hand.
     #[test]
     fn shipped_bottle_scene_is_force_closure_and_holds() {
-        let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/bottle.toml");
-        let s = scene::read_scene(&path).unwrap();
-        let o = run_scene(&s, hand(), true).unwrap();
-        let r = &o.report;
+        let r = &shipped("bottle");
         assert!(r.force_closure && r.epsilon > 0.0, "{}", r.epsilon);
         assert!(r.holds, "{:?}", r.hold_test);
         // The palm came in, and the squeeze pressed the skin no deeper than its target.
@@ -660,10 +664,7 @@ mod tests {
     /// squeeze, off the palm, and it holds in rapier in all six directions.
     #[test]
     fn shipped_pen_scene_is_a_tripod_that_holds() {
-        let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/pen.toml");
-        let s = scene::read_scene(&path).unwrap();
-        let o = run_scene(&s, hand(), true).unwrap();
-        let r = &o.report;
+        let r = &shipped("pen");
         let area = |l: &str| r.contact_area_mm2.get(l).copied().unwrap_or(0.0);
         for pad in ["T_DIST", "I_DIST", "M_DIST"] {
             assert!(area(pad) > 0.0, "{pad}: {:?}", r.contact_area_mm2);
