@@ -342,8 +342,10 @@ pub fn run_scene(scene: &Scene, hand: &dyn PosableHand, quiet: bool) -> Result<G
     } else {
         0
     };
-    for a in &tried[..pick] {
-        timings.search_s += a.timings.autograsp_s + a.timings.evaluate_s + a.timings.hold_s;
+    for (k, a) in tried.iter().enumerate() {
+        if k != pick {
+            timings.search_s += a.timings.autograsp_s + a.timings.evaluate_s + a.timings.hold_s;
+        }
     }
     let Attempt {
         approach,
