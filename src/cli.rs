@@ -468,33 +468,45 @@ pub type Validation = crate::validate::SubjectValidation;
 /// `truth.json` (per-joint centre and axis errors, link lengths), `skin.obj` against
 /// `reference.ply` both ways, the caliper dimensions measured on `skin.obj` and the joint fits
 /// of the seed paper's Figures 8-9, into `DIR/metrics.json`, `DIR/report.html` (self-contained)
-/// and `DIR/report.md` with the pictures and charts beside them; tables on stdout.
+/// and `DIR/report.md` with the pictures and charts beside them; tables on stdout. Both
+/// references are optional (a real subject has no `truth.json`): what needs a missing one is
+/// skipped, and the report says so.
 pub fn validate(subject_dir: &Path, model: &Path, report: &Path, log: &Log) -> Result<Validation> {
     let spinner = log.progress(1, "validate");
     let (v, _) = crate::validate::validate_subject(subject_dir, model, report)?;
     spinner.finish_and_clear();
-    let (acc, surface, dims) = (&v.link, &v.surface, &v.dimensions);
+    let dims = &v.dimensions;
     if !log.quiet() {
-        println!("joint    centre error (mm)   axis error (deg)");
-        for e in &acc.joints {
-            let axis = e
-                .axis_deg
-                .map(|a| format!("{a:.2}"))
-                .unwrap_or_else(|| "-".into());
-            println!("{:8} {:>10.2}          {:>8}", e.joint, e.centre_mm, axis);
+        if let Some(acc) = &v.link {
+            println!("joint    centre error (mm)   axis error (deg)");
+            for e in &acc.joints {
+                let axis = e
+                    .axis_deg
+                    .map(|a| format!("{a:.2}"))
+                    .unwrap_or_else(|| "-".into());
+                println!("{:8} {:>10.2}          {:>8}", e.joint, e.centre_mm, axis);
+            }
         }
-        println!(
-            "skin.obj to reference.ply: mean {:.2} mm, SD {:.2}, 95th percentile {:.2}, max {:.2} mm over {} vertices",
-            surface.mean_mm, surface.sd_mm, surface.p95_mm, surface.max_mm, surface.n
-        );
-        let r = &v.surface_reverse;
-        println!(
-            "reference.ply to skin.obj: mean {:.2} mm, SD {:.2}, 95th percentile {:.2}, max {:.2} mm over {} vertices",
-            r.mean_mm, r.sd_mm, r.p95_mm, r.max_mm, r.n
-        );
-        println!("link         estimated    true (mm)");
-        for (k, (m, t)) in &acc.link_lengths {
-            println!("{k:12} {m:>8.2} {t:>10.2}");
+        if let (Some(surface), Some(r)) = (&v.surface, &v.surface_reverse) {
+            println!(
+                "skin.obj to reference.ply: mean {:.2} mm, SD {:.2}, 95th percentile {:.2}, max {:.2} mm over {} vertices",
+                surface.mean_mm, surface.sd_mm, surface.p95_mm, surface.max_mm, surface.n
+            );
+            println!(
+                "reference.ply to skin.obj: mean {:.2} mm, SD {:.2}, 95th percentile {:.2}, max {:.2} mm over {} vertices",
+                r.mean_mm, r.sd_mm, r.p95_mm, r.max_mm, r.n
+            );
+        }
+        if let Some(acc) = &v.link {
+            println!("link         estimated    true (mm)");
+            for (k, (m, t)) in &acc.link_lengths {
+                println!("{k:12} {m:>8.2} {t:>10.2}");
+            }
+        } else {
+            println!("link         estimated (mm)");
+            for (k, m) in &v.link_lengths_mm {
+                println!("{k:12} {m:>8.2}");
+            }
         }
         println!("dimension                     on skin    given     true (mm)");
         for e in &dims.dimensions {
@@ -511,6 +523,9 @@ pub fn validate(subject_dir: &Path, model: &Path, report: &Path, log: &Log) -> R
             "dimensions on skin - given: mean {:+.3} mm, SD {:.3} mm",
             dims.mean_vs_given_mm, dims.sd_vs_given_mm
         );
+        if let Some(r) = crate::validate::report_tables::references_sentence(&v) {
+            println!("{r}");
+        }
         let secs: f64 = v.validate_timings_s.iter().map(|x| x.1).sum();
         log.info(format!(
             "validate: {:.1} s; open {}",
@@ -541,12 +556,8 @@ pub fn validate_suite(dir: &Path, report: &Path, log: &Log) -> Result<()> {
         reconstruct(&sdir, &out, &Log::new(true))?;
         let secs = t0.elapsed().as_secs_f64();
         let (v, _) = crate::validate::validate_subject(&sdir, &out, &out.join("report"))?;
-        let f = crate::validate::thresholds::Figures::measure(
-            &v.link,
-            &v.surface,
-            &v.dimensions,
-            &out,
-        )?;
+        let (link, surface) = v.against_references(&sdir)?;
+        let f = crate::validate::thresholds::Figures::measure(link, surface, &v.dimensions, &out)?;
         figures.push((name.clone(), f));
         rows.push((name.clone(), opts.clone(), v, secs));
         pb.inc(1);
@@ -570,7 +581,8 @@ pub fn validate_suite(dir: &Path, report: &Path, log: &Log) -> Result<()> {
     );
     let mut summary = serde_json::Map::new();
     for (name, o, v, secs) in &rows {
-        let (acc, surf, dims) = (&v.link, &v.surface, &v.dimensions);
+        let (acc, surf) = v.against_references(&dir.join("subjects").join(name))?;
+        let dims = &v.dimensions;
         let c3: Vec<f64> = acc
             .joints
             .iter()
@@ -676,7 +688,7 @@ pub fn demo(out: &Path, log: &Log) -> Result<()> {
         &Log::new(true),
     )?;
     let grasp = crate::grasp::demo_bottle(&model_dir, &out.join("grasp"))?;
-    let (acc, surface) = (&v.link, &v.surface);
+    let (acc, surface) = v.against_references(&subject_dir)?;
     if !log.quiet() {
         println!(
             "ergohand demo: stages run: template, synth, link model, skin (sections 3.5-3.6), tetrahedral mesh, skinned hand, validation report, pose, grasp"

@@ -76,9 +76,11 @@ enum Command {
         #[arg(long, default_value_t = ergohand::skin::pipeline::CENTRE_WEIGHT)]
         centre_weight: f64,
     },
-    /// Compare a reconstruction with reference.ply / truth.json and write a report.
+    /// Compare a reconstruction with reference.ply / truth.json (each optional) and the
+    /// caliper dimensions, and write a report.
     Validate {
-        /// The subject folder (with truth.json), or with --suite the suite folder
+        /// The subject folder (truth.json and reference.ply used when present), or with
+        /// --suite the suite folder
         /// (holding suite.toml).
         subject_dir: PathBuf,
         /// The reconstruction folder (default: SUBJECT_DIR/out).

@@ -34,7 +34,8 @@ fn ci_subset_meets_the_accuracy_thresholds() {
         cli::synth(&opts, &sdir, false, &quiet).unwrap();
         cli::reconstruct(&sdir, &model, &quiet).unwrap();
         let v = cli::validate(&sdir, &model, &model.join("report"), &quiet).unwrap();
-        let figures = Figures::measure(&v.link, &v.surface, &v.dimensions, &model).unwrap();
+        let (link, surface) = v.against_references(&sdir).unwrap();
+        let figures = Figures::measure(link, surface, &v.dimensions, &model).unwrap();
         regressions.extend(check(name, &figures, limits));
         measured.push(format!("{name}: {:?}", figures.0));
     }

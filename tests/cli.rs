@@ -77,6 +77,110 @@ fn synth_writes_a_subject_and_refuses_bad_options() {
     assert!(error_line(&o).contains(blocked.to_str().unwrap()));
 }
 
+/// The subject folder `subj` as a lab without simulation would have it: subject.toml and the
+/// trials, plus `reference.ply` when `with_reference` (hard links, nothing copied).
+fn real_subject(subj: &Path, to: &Path, with_reference: bool) {
+    std::fs::create_dir_all(to.join("trials")).unwrap();
+    let mut files = vec![std::path::PathBuf::from("subject.toml")];
+    if with_reference {
+        files.push("reference.ply".into());
+    }
+    for e in std::fs::read_dir(subj.join("trials")).unwrap() {
+        files.push(Path::new("trials").join(e.unwrap().file_name()));
+    }
+    for f in files {
+        std::fs::hard_link(subj.join(&f), to.join(&f)).unwrap();
+    }
+}
+
+/// `validate` on the same reconstruction without `truth.json` (then without `reference.ply`
+/// too) succeeds, writes `null` for what needs the missing file, the very numbers of the full
+/// validation (`full`, its metrics.json) for everything else, and says what it skipped.
+fn validate_like_a_real_subject(subj: &Path, model: &Path, full: &serde_json::Value, tmp: &Path) {
+    for with_reference in [true, false] {
+        let sdir = tmp.join(format!("S-{with_reference}"));
+        let rep = tmp.join(format!("rep-{with_reference}"));
+        real_subject(subj, &sdir, with_reference);
+        let v = ergohand(&[
+            "validate",
+            sdir.to_str().unwrap(),
+            "--model",
+            model.to_str().unwrap(),
+            "--report",
+            rep.to_str().unwrap(),
+            "-q",
+        ]);
+        assert!(v.status.success(), "{}", stderr(&v));
+        let m: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(rep.join("metrics.json")).unwrap())
+                .unwrap();
+        assert!(m["link"].is_null(), "{}", m["link"]);
+        assert_eq!(m["references"]["truth_json"], false);
+        assert_eq!(m["references"]["reference_ply"], with_reference);
+        // The model's own link lengths are the estimated ones of the full validation.
+        let lengths = m["link_lengths_mm"].as_object().unwrap();
+        let full_lengths = full["link"]["link_lengths"].as_object().unwrap();
+        assert_eq!(lengths.len(), full_lengths.len());
+        for (k, l) in lengths {
+            assert_eq!(l, &full_lengths[k][0], "{k}");
+        }
+        // Dimensions against the calipers: the same numbers, without true values.
+        let (d, fd) = (&m["dimensions"], &full["dimensions"]);
+        assert_eq!(d["mean_vs_given_mm"], fd["mean_vs_given_mm"]);
+        assert_eq!(d["sd_vs_given_mm"], fd["sd_vs_given_mm"]);
+        assert!(d["vs_true_mm"].is_null());
+        let rows = d["dimensions"].as_array().unwrap();
+        assert_eq!(rows.len(), 22);
+        for (a, b) in rows.iter().zip(fd["dimensions"].as_array().unwrap()) {
+            assert_eq!(a["skin_mm"], b["skin_mm"]);
+            assert_eq!(a["given_mm"], b["given_mm"]);
+            assert!(a["true_mm"].is_null() && b["true_mm"].is_f64());
+        }
+        assert_eq!(m["joint_fits"], full["joint_fits"]);
+        for key in [
+            "surface",
+            "surface_reverse",
+            "reference_vertices",
+            "reference_stride",
+            "colour_scale_top_mm",
+        ] {
+            if with_reference {
+                assert_eq!(m[key], full[key], "{key}");
+            } else {
+                assert!(m[key].is_null(), "{key}: {}", m[key]);
+            }
+        }
+        assert_eq!(rep.join("error-map.glb").is_file(), with_reference);
+        assert!(!rep.join("joint-errors.png").exists());
+        // The reports say what was skipped and why, are self-contained and link only files
+        // that exist.
+        let html = std::fs::read_to_string(rep.join("report.html")).unwrap();
+        let md = std::fs::read_to_string(rep.join("report.md")).unwrap();
+        ergohand::validate::report_html::check_self_contained(&html).unwrap();
+        for text in [&html, &md] {
+            assert!(text.contains("truth.json absent"), "truth skip not said");
+            assert!(text.contains("no truth.json"), "truth skip not said");
+            assert_eq!(
+                text.contains("no reference.ply") && text.contains("reference.ply absent"),
+                !with_reference,
+                "reference skip"
+            );
+        }
+        for id in [
+            "error-map",
+            "joint-fits",
+            "joint-centres",
+            "dimensions",
+            "link-lengths",
+        ] {
+            assert!(html.contains(&format!("<section id=\"{id}\">")), "{id}");
+        }
+        for l in md.split("](").skip(1).map(|s| s.split(')').next().unwrap()) {
+            assert!(rep.join(l).is_file(), "report.md links {l}");
+        }
+    }
+}
+
 #[test]
 fn reconstruct_and_validate_a_simulated_subject() {
     let dir = tempfile::tempdir().unwrap();
@@ -168,6 +272,8 @@ fn reconstruct_and_validate_a_simulated_subject() {
     );
     assert!(metrics["surface_reverse"]["mean_mm"].as_f64().unwrap() < 1.0);
     assert_eq!(metrics["joint_fits"].as_array().unwrap().len(), 16);
+    // A real lab subject has no truth.json, and may have no reference.ply either.
+    validate_like_a_real_subject(&subj, &out, &metrics, &dir.path().join("real"));
     let report: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap();
     assert_eq!(report["skin"]["inverted_faces"], 0);

@@ -77,19 +77,32 @@ pub fn compare(
             }
         })
         .collect();
-    let mut link_lengths = BTreeMap::new();
-    for f in Finger::ALL {
-        let js = f.joints();
-        for k in 0..2 {
-            let (a, b) = (js[k].name(), js[k + 1].name());
-            let len = |t: &BTreeMap<String, JointRecord>| (v(t[a].centre) - v(t[b].centre)).norm();
-            link_lengths.insert(format!("{a}-{b}"), (len(model), len(truth)));
-        }
-    }
+    let true_lengths = link_lengths(truth);
+    let link_lengths = link_lengths(model)
+        .into_iter()
+        .filter_map(|(k, m)| Some((k.clone(), (m, *true_lengths.get(&k)?))))
+        .collect();
     LinkAccuracy {
         joints,
         link_lengths,
     }
+}
+
+/// Link lengths of one `joints` table: the distance between consecutive joint centres of each
+/// digit (MCP-PIP, PIP-DIP; thumb CMC-MCP, MCP-IP), keyed `I_MCP-I_PIP`, mm. Joints missing
+/// from the table are skipped ([`read_joints`] guarantees all of them).
+pub fn link_lengths(joints: &BTreeMap<String, JointRecord>) -> BTreeMap<String, f64> {
+    let mut out = BTreeMap::new();
+    for f in Finger::ALL {
+        let js = f.joints();
+        for k in 0..2 {
+            let (a, b) = (js[k].name(), js[k + 1].name());
+            if let (Some(ja), Some(jb)) = (joints.get(a), joints.get(b)) {
+                out.insert(format!("{a}-{b}"), (v(ja.centre) - v(jb.centre)).norm());
+            }
+        }
+    }
+    out
 }
 
 /// Compare `link_model.json` at `model` with `truth.json` at `truth`.

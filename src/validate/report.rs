@@ -2,6 +2,12 @@
 //! reconstruction against its subject (issue 9), written as `DIR/metrics.json`, the pictures
 //! and charts (PNG and SVG) beside it, the error map as a vertex-coloured GLB, and the person's
 //! report `report.html` (self-contained) and `report.md` (linking the pictures).
+//!
+//! Both references are optional (subject-format spec, section 1): a real subject has no
+//! `truth.json` and may have no `reference.ply`. What needs a missing reference is skipped —
+//! `null` in `metrics.json`, one sentence in the report saying why — and everything else (the
+//! caliper dimensions of `subject.toml`, the joint fits of the seed paper's Figures 8-9, the
+//! model's link lengths, runtimes, warnings) is reported as for a simulated subject.
 
 use super::charts::Figure;
 use super::dimension_accuracy::{dimension_accuracy, DimensionAccuracy};
@@ -10,7 +16,7 @@ use super::error_map::{
 };
 use super::joint_fit::{joint_fits, JointFit};
 use super::joint_fit_plots::{joint_fit_figures, radius_figure};
-use super::link_accuracy::{compare, read_joints, LinkAccuracy};
+use super::link_accuracy::{compare, link_lengths, read_joints, LinkAccuracy};
 use super::surface_error::SurfaceError;
 use crate::anatomy::Side;
 use crate::error::{Error, Result};
@@ -74,25 +80,41 @@ impl JointFitSummary {
     }
 }
 
-/// Everything `validate` measured on one subject (`metrics.json`).
+/// Which optional references the subject folder held (subject-format spec, section 1).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+pub struct References {
+    /// `reference.ply`, the CT-like reference skin surface.
+    pub reference_ply: bool,
+    /// `truth.json`, the ground truth of a simulated subject.
+    pub truth_json: bool,
+}
+
+/// Everything `validate` measured on one subject (`metrics.json`). Fields that need a
+/// reference the subject lacks are `None` (`null` in the JSON): `link` without `truth.json`;
+/// `surface`, `surface_reverse`, `reference_vertices`, `reference_stride` and
+/// `colour_scale_top_mm` without `reference.ply`.
 #[derive(Clone, Debug, Serialize)]
 pub struct SubjectValidation {
     /// Subject name (`subject.toml`).
     pub subject: String,
     /// Which hand.
     pub hand: Side,
-    /// Joint centres, axes and link lengths against `truth.json`.
-    pub link: LinkAccuracy,
-    /// `skin.obj`'s vertices to `reference.ply`'s surface.
-    pub surface: SurfaceError,
+    /// The references found in the subject folder.
+    pub references: References,
+    /// Joint centres, axes and link lengths against `truth.json` (`None`: no truth).
+    pub link: Option<LinkAccuracy>,
+    /// The model's own link lengths (`link_model.json`), mm: known for every subject.
+    pub link_lengths_mm: BTreeMap<String, f64>,
+    /// `skin.obj`'s vertices to `reference.ply`'s surface (`None`: no reference).
+    pub surface: Option<SurfaceError>,
     /// `reference.ply`'s vertices (every `reference_stride`-th) to `skin.obj`'s surface.
-    pub surface_reverse: SurfaceError,
+    pub surface_reverse: Option<SurfaceError>,
     /// Vertices of the reference surface.
-    pub reference_vertices: usize,
+    pub reference_vertices: Option<usize>,
     /// Stride of the reference vertices measured.
-    pub reference_stride: usize,
+    pub reference_stride: Option<usize>,
     /// Top of the error map's colour scale, mm.
-    pub colour_scale_top_mm: f64,
+    pub colour_scale_top_mm: Option<f64>,
     /// The caliper dimensions measured on `skin.obj`.
     pub dimensions: DimensionAccuracy,
     /// The seed paper's Figures 8-9 in numbers.
@@ -105,20 +127,39 @@ pub struct SubjectValidation {
     pub warnings: Vec<String>,
     /// Files written beside `metrics.json` (names).
     pub files: Vec<String>,
-    /// The error map at thumbnail size (PNG), for the suite's index.
+    /// The error map at thumbnail size (PNG), for the suite's index (`None`: no reference).
     #[serde(skip)]
-    pub thumbnail_png: Vec<u8>,
+    pub thumbnail_png: Option<Vec<u8>>,
+}
+
+impl SubjectValidation {
+    /// The comparisons against both references, for the callers that need a simulated
+    /// subject's (`validate --suite`, the accuracy thresholds, the demo). Errors name
+    /// `subject_dir` and the missing file.
+    pub fn against_references(&self, subject_dir: &Path) -> Result<(&LinkAccuracy, &SurfaceError)> {
+        match (&self.link, &self.surface) {
+            (Some(l), Some(s)) => Ok((l, s)),
+            (None, _) => Err(Error::input(
+                &subject_dir.join("truth.json"),
+                "missing: needed here to compare the link model with the truth",
+            )),
+            (_, None) => Err(Error::input(
+                &subject_dir.join("reference.ply"),
+                "missing: needed here to compare the skin with the reference surface",
+            )),
+        }
+    }
 }
 
 /// Pictures and charts of a report, in the order the report shows them.
 #[derive(Clone, Debug)]
 pub struct ReportFigures {
-    /// The coloured skin, four views (PNG bytes and file).
-    pub error_map: (PathBuf, Vec<u8>),
-    /// Histograms of both distance directions.
-    pub distances: Figure,
-    /// Centre and axis errors per joint.
-    pub joint_errors: Figure,
+    /// The coloured skin, four views (PNG bytes and file); `None` without `reference.ply`.
+    pub error_map: Option<(PathBuf, Vec<u8>)>,
+    /// Histograms of both distance directions; `None` without `reference.ply`.
+    pub distances: Option<Figure>,
+    /// Centre and axis errors per joint; `None` without `truth.json`.
+    pub joint_errors: Option<Figure>,
     /// Figure 8, per digit.
     pub fits: Vec<Figure>,
     /// Figure 9.
@@ -131,7 +172,8 @@ fn read_json(path: &Path) -> Result<serde_json::Value> {
 }
 
 /// Measure the reconstruction in `model` (a `reconstruct` folder) against the subject in
-/// `subject_dir` (with `truth.json` and `reference.ply`) and write the report into `report`.
+/// `subject_dir` (with `truth.json` and `reference.ply` when it has them: each is optional,
+/// and what needs a missing one is skipped) and write the report into `report`.
 pub fn validate_subject(
     subject_dir: &Path,
     model: &Path,
@@ -144,19 +186,22 @@ pub fn validate_subject(
         *t = Instant::now();
     };
     let truth_path = subject_dir.join("truth.json");
-    if !truth_path.exists() {
-        return Err(Error::input(
-            &truth_path,
-            "missing: only simulated subjects carry truth.json, which validate compares against",
-        ));
-    }
+    let reference_path = subject_dir.join("reference.ply");
+    let references = References {
+        reference_ply: reference_path.exists(),
+        truth_json: truth_path.exists(),
+    };
     let subject = Subject::load(subject_dir)?;
     let model_path = model.join("link_model.json");
     let joints = read_joints(&model_path)?;
-    let truth_text = std::fs::read_to_string(&truth_path).map_err(|e| Error::io(&truth_path, e))?;
-    let truth: crate::synth::Truth = serde_json::from_str(&truth_text)
-        .map_err(|e| Error::input(&truth_path, format!("not a truth file: {e}")))?;
-    let link = compare(&joints, &read_joints(&truth_path)?);
+    let truth = if references.truth_json {
+        let text = std::fs::read_to_string(&truth_path).map_err(|e| Error::io(&truth_path, e))?;
+        let truth: crate::synth::Truth = serde_json::from_str(&text)
+            .map_err(|e| Error::input(&truth_path, format!("not a truth file: {e}")))?;
+        Some((truth, compare(&joints, &read_joints(&truth_path)?)))
+    } else {
+        None
+    };
     let model_json = read_json(&model_path)?;
     let warnings: Vec<String> = model_json["warnings"]
         .as_array()
@@ -181,13 +226,17 @@ pub fn validate_subject(
     };
     let skin_path = model.join("skin.obj");
     let skin = obj::read_obj(&skin_path, Units::Millimetres)?;
-    let reference = ply::read_ply(&subject_dir.join("reference.ply"), Units::Millimetres)?.mesh;
+    let reference = if references.reference_ply {
+        Some(ply::read_ply(&reference_path, Units::Millimetres)?.mesh)
+    } else {
+        None
+    };
     lap("read inputs", &mut t);
 
     // The two largest jobs are independent: the distances (reference.ply has about 1.7 M
     // faces) and the trajectories (seven trials read again).
     let (map, fits) = rayon::join(
-        || error_map(&skin, &reference),
+        || reference.as_ref().map(|r| error_map(&skin, r)),
         || joint_fits(&subject, &joints, &model_path),
     );
     let fits = fits?;
@@ -197,58 +246,65 @@ pub fn validate_subject(
         &skin_path,
         subject.hand,
         &subject.dimensions,
-        Some(&truth.dimensions),
+        truth.as_ref().map(|t| &t.0.dimensions),
     )?;
-    lap("error map (both directions) and joint trajectories", &mut t);
+    let link = truth.map(|t| t.1);
+    lap(
+        if map.is_some() {
+            "error map (both directions) and joint trajectories"
+        } else {
+            "joint trajectories"
+        },
+        &mut t,
+    );
 
     std::fs::create_dir_all(report).map_err(|e| Error::io(report, e))?;
-    let top = colour_scale_top(&map.skin_to_reference);
-    let dirs = hand_directions(&joints, &model_path)?;
-    let title = format!(
-        "{}: distance of skin.obj to reference.ply (mean {:.2} mm, 95th percentile {:.2} mm, max {:.2} mm)",
-        subject.name,
-        map.skin_to_reference_stats.mean_mm,
-        map.skin_to_reference_stats.p95_mm,
-        map.skin_to_reference_stats.max_mm
-    );
-    let views = render_error_views(&skin, &map.skin_to_reference, dirs, top, &title, 300, 4)?;
-    let map_png = views.to_png()?;
-    let map_path = report.join("error-map.png");
-    write_bytes_atomic(&map_path, &map_png)?;
-    let thumb = render_error_views(&skin, &map.skin_to_reference, dirs, top, "", 100, 2)?;
-    let thumbnail_png = thumb.to_png()?;
-    write_bytes_atomic(&report.join("error-map-small.png"), &thumbnail_png)?;
-    write_error_map_glb(
-        &report.join("error-map.glb"),
-        &skin,
-        &map.skin_to_reference,
-        top,
-    )?;
-    lap("error map pictures and GLB", &mut t);
+    let mut files: Vec<String> = vec![
+        "metrics.json".into(),
+        "report.html".into(),
+        "report.md".into(),
+    ];
+    let mut map_pictures = None;
+    if let Some(map) = &map {
+        map_pictures = Some(error_map_pictures(
+            &subject.name,
+            map,
+            &skin,
+            &joints,
+            &model_path,
+            report,
+        )?);
+        files.extend(["error-map.png", "error-map-small.png", "error-map.glb"].map(String::from));
+        lap("error map pictures and GLB", &mut t);
+    }
 
-    let distances = super::distance_plots::distance_histograms(&map, report)?;
-    let joint_errors = super::joint_error_plots::joint_error_figure(&link, report)?;
+    let distances = map
+        .as_ref()
+        .map(|m| super::distance_plots::distance_histograms(m, report))
+        .transpose()?;
+    let joint_errors = link
+        .as_ref()
+        .map(|l| super::joint_error_plots::joint_error_figure(l, report))
+        .transpose()?;
     let fit_figures = joint_fit_figures(&fits, report)?;
     let radii = radius_figure(&fits, report)?;
     lap("charts (PNG and SVG)", &mut t);
 
+    let (error_map_png, thumbnail_png, top) = match map_pictures {
+        Some((a, b, c)) => (Some(a), Some(b), Some(c)),
+        None => (None, None, None),
+    };
     let figures = ReportFigures {
-        error_map: (map_path, map_png),
+        error_map: error_map_png,
         distances,
         joint_errors,
         fits: fit_figures,
         radii,
     };
-    let mut files: Vec<String> = vec![
-        "metrics.json".into(),
-        "report.html".into(),
-        "report.md".into(),
-        "error-map.png".into(),
-        "error-map-small.png".into(),
-        "error-map.glb".into(),
-    ];
-    for f in [&figures.distances, &figures.joint_errors]
-        .into_iter()
+    for f in figures
+        .distances
+        .iter()
+        .chain(&figures.joint_errors)
         .chain(&figures.fits)
         .chain(std::iter::once(&figures.radii))
     {
@@ -259,11 +315,13 @@ pub fn validate_subject(
     let mut v = SubjectValidation {
         subject: subject.name.clone(),
         hand: subject.hand,
+        references,
         link,
-        surface: map.skin_to_reference_stats.clone(),
-        surface_reverse: map.reference_to_skin_stats.clone(),
-        reference_vertices: map.reference_vertices,
-        reference_stride: map.reference_stride,
+        link_lengths_mm: link_lengths(&joints),
+        surface: map.as_ref().map(|m| m.skin_to_reference_stats.clone()),
+        surface_reverse: map.as_ref().map(|m| m.reference_to_skin_stats.clone()),
+        reference_vertices: map.as_ref().map(|m| m.reference_vertices),
+        reference_stride: map.as_ref().map(|m| m.reference_stride),
         colour_scale_top_mm: top,
         dimensions,
         joint_fits: fits.iter().map(JointFitSummary::of).collect(),
@@ -291,4 +349,41 @@ pub fn validate_subject(
     let json = serde_json::to_string_pretty(&v).expect("serialisable");
     write_bytes_atomic(&report.join("metrics.json"), json.as_bytes())?;
     Ok((v, figures))
+}
+
+/// The error map's pictures in `report`: `error-map.png` (four views, with the statistics in
+/// the title), `error-map-small.png` (the suite's thumbnail) and `error-map.glb` (the skin
+/// with vertex colours). Returns the big picture (file, PNG bytes), the thumbnail's PNG bytes
+/// and the colour scale's top, mm.
+fn error_map_pictures(
+    name: &str,
+    map: &super::error_map::ErrorMap,
+    skin: &crate::geometry::TriMesh,
+    joints: &BTreeMap<String, crate::skeleton::record::JointRecord>,
+    model_path: &Path,
+    report: &Path,
+) -> Result<((PathBuf, Vec<u8>), Vec<u8>, f64)> {
+    let top = colour_scale_top(&map.skin_to_reference);
+    let dirs = hand_directions(joints, model_path)?;
+    let title = format!(
+        "{}: distance of skin.obj to reference.ply (mean {:.2} mm, 95th percentile {:.2} mm, max {:.2} mm)",
+        name,
+        map.skin_to_reference_stats.mean_mm,
+        map.skin_to_reference_stats.p95_mm,
+        map.skin_to_reference_stats.max_mm
+    );
+    let views = render_error_views(skin, &map.skin_to_reference, dirs, top, &title, 300, 4)?;
+    let map_png = views.to_png()?;
+    let map_path = report.join("error-map.png");
+    write_bytes_atomic(&map_path, &map_png)?;
+    let thumb = render_error_views(skin, &map.skin_to_reference, dirs, top, "", 100, 2)?;
+    let thumbnail_png = thumb.to_png()?;
+    write_bytes_atomic(&report.join("error-map-small.png"), &thumbnail_png)?;
+    write_error_map_glb(
+        &report.join("error-map.glb"),
+        skin,
+        &map.skin_to_reference,
+        top,
+    )?;
+    Ok(((map_path, map_png), thumbnail_png, top))
 }

@@ -254,8 +254,14 @@ pub fn runtime_html(v: &SubjectValidation) -> String {
 
 /// The page of one subject.
 pub fn subject_html(v: &SubjectValidation, figs: &ReportFigures) -> String {
+    let against = match (v.references.truth_json, v.references.reference_ply) {
+        (true, true) => "the simulated subject's truth and its CT-like reference surface",
+        (true, false) => "the simulated subject's truth and the caliper dimensions",
+        (false, true) => "the CT-like reference surface and the caliper dimensions",
+        (false, false) => "the caliper dimensions and the trials",
+    };
     let header = format!(
-        "<h1>Validation report · {}</h1><p>{} hand · skin, link model and dimensions of the reconstruction against the simulated subject's truth and its CT-like reference surface</p><nav>{}</nav>",
+        "<h1>Validation report · {}</h1><p>{} hand · skin, link model and dimensions of the reconstruction against {against}</p><nav>{}</nav>",
         esc(&v.subject),
         v.hand,
         [
@@ -282,24 +288,44 @@ pub fn subject_html(v: &SubjectValidation, figs: &ReportFigures) -> String {
         ));
     }
     b.push_str("</div>\n");
+    if let Some(r) = tables::references_sentence(v) {
+        b.push_str(&format!(
+            "<p class=\"note\" id=\"references\">{}</p>\n",
+            esc(&r)
+        ));
+    }
 
     // 1. Error map.
     b.push_str("<section id=\"error-map\"><h2>1 · Skin against the CT-like reference</h2>");
-    b.push_str("<p class=\"lead\">Every vertex of the fitted skin (<code>skin.obj</code>) coloured by its distance to the reference surface (<code>reference.ply</code>, a simulated CT of the true hand), as the seed paper's Figure 10(e). Yellow areas are where the reconstruction is furthest from the hand. The same colours are in <code>error-map.glb</code> for any glTF viewer.</p>");
-    b.push_str(&figure(
-        &figs.error_map.1,
+    if let (Some((_, png)), Some(distances), Some(table), Some(top)) = (
+        &figs.error_map,
+        &figs.distances,
+        tables::surface_table(v),
+        v.colour_scale_top_mm,
+    ) {
+        b.push_str(&format!("<p class=\"lead\">Every vertex of the fitted skin (<code>skin.obj</code>) coloured by its distance to the reference surface (<code>reference.ply</code>, {}), as the seed paper's Figure 10(e). Yellow areas are where the reconstruction is furthest from the hand. The same colours are in <code>error-map.glb</code> for any glTF viewer.</p>",
+        if v.references.truth_json { "a simulated CT of the true hand" } else { "a CT-like scan of the hand" }
+    ));
+        b.push_str(&figure(
+        png,
         "error map: dorsal, palmar, radial and ulnar views",
         &format!(
             "Views from the back of the hand, the palm, the thumb side and the little-finger side, all at one scale. Colour scale 0 to {:.1} mm (the 99th percentile rounded up; larger distances take the top colour).",
-            v.colour_scale_top_mm
+            top
         ),
         &[("PNG", "error-map.png".into()), ("GLB with vertex colours", "error-map.glb".into())],
     ));
-    b.push_str(&table_html(&tables::surface_table(v)));
-    b.push_str(&chart(
-        &figs.distances,
+        b.push_str(&table_html(&table));
+        b.push_str(&chart(
+        distances,
         "Distribution of the distances in both directions: the share of each direction's points in each bin, side by side.",
     ));
+    } else {
+        b.push_str(&format!(
+            "<p class=\"lead\">{}</p>",
+            esc(tables::SKIPPED_SURFACE)
+        ));
+    }
     b.push_str("</section>\n");
 
     // 2. Joint fits.
@@ -322,17 +348,28 @@ pub fn subject_html(v: &SubjectValidation, figs: &ReportFigures) -> String {
     b.push_str(
         "<section id=\"joint-centres\"><h2>3 · Joint centres and axes against the truth</h2>",
     );
-    b.push_str("<p class=\"lead\">Distance between each estimated joint centre (<code>link_model.json</code>) and the true one (<code>truth.json</code>), and the angle between estimated and true hinge axes.</p>");
-    b.push_str(&chart(
-        &figs.joint_errors,
-        "Left: distance between estimated and true centre per joint. Right: angle between estimated and true axis per hinge joint.",
-    ));
-    b.push_str(&table_html(&tables::joint_table(v)));
+    if let (Some(joint_errors), Some(table)) = (&figs.joint_errors, tables::joint_table(v)) {
+        b.push_str("<p class=\"lead\">Distance between each estimated joint centre (<code>link_model.json</code>) and the true one (<code>truth.json</code>), and the angle between estimated and true hinge axes.</p>");
+        b.push_str(&chart(
+            joint_errors,
+            "Left: distance between estimated and true centre per joint. Right: angle between estimated and true axis per hinge joint.",
+        ));
+        b.push_str(&table_html(&table));
+    } else {
+        b.push_str(&format!(
+            "<p class=\"lead\">{}</p>",
+            esc(tables::SKIPPED_TRUTH)
+        ));
+    }
     b.push_str("</section>\n");
 
     // 4. Dimensions.
     b.push_str("<section id=\"dimensions\"><h2>4 · Dimensions</h2>");
-    b.push_str("<p class=\"lead\">The 22 caliper dimensions measured on the fitted skin between the template's vertex pairs, against the values given in <code>subject.toml</code> and the error-free values of the truth.</p>");
+    b.push_str(if v.dimensions.vs_true_mm.is_some() {
+        "<p class=\"lead\">The 22 caliper dimensions measured on the fitted skin between the template's vertex pairs, against the values given in <code>subject.toml</code> and the error-free values of the truth.</p>"
+    } else {
+        "<p class=\"lead\">The caliper dimensions measured on the fitted skin between the template's vertex pairs, against the values given in <code>subject.toml</code>.</p>"
+    });
     b.push_str(&table_html(&tables::dimension_table(v)));
     b.push_str("</section>\n");
 

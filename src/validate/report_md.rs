@@ -78,14 +78,26 @@ pub fn subject_markdown(v: &SubjectValidation, figs: &ReportFigures) -> String {
     for (l, val, n) in tables::key_figures(v) {
         s.push_str(&format!("| {l} | {val} | {n} |\n"));
     }
+    if let Some(r) = tables::references_sentence(v) {
+        s.push_str(&format!("\n{r}\n"));
+    }
     s.push_str("\n## 1. Error map: skin against the CT-like reference\n\n");
-    s.push_str(&format!(
-        "![error map]({})\n\nDistance of every `skin.obj` vertex to `reference.ply`; dorsal, palmar, radial and ulnar views, colour scale 0 to {:.1} mm. Also as a vertex-coloured GLB: [error-map.glb](error-map.glb).\n\n",
-        file(&figs.error_map.0),
-        v.colour_scale_top_mm
-    ));
-    s.push_str(&table_markdown(&tables::surface_table(v)));
-    s.push_str(&chart(&figs.distances));
+    if let (Some((path, _)), Some(distances), Some(table), Some(top)) = (
+        &figs.error_map,
+        &figs.distances,
+        tables::surface_table(v),
+        v.colour_scale_top_mm,
+    ) {
+        s.push_str(&format!(
+            "![error map]({})\n\nDistance of every `skin.obj` vertex to `reference.ply`; dorsal, palmar, radial and ulnar views, colour scale 0 to {:.1} mm. Also as a vertex-coloured GLB: [error-map.glb](error-map.glb).\n\n",
+            file(path),
+            top
+        ));
+        s.push_str(&table_markdown(&table));
+        s.push_str(&chart(distances));
+    } else {
+        s.push_str(&format!("{}\n\n", tables::SKIPPED_SURFACE));
+    }
     s.push_str("## 2. Joint fits (the seed paper's Figures 8 and 9)\n\nThe child marker farthest from each centre, in the parent's reference pose and the joint's frame, with the fitted circle or sphere outline, and the histogram of its distance to the centre minus the mean.\n\n");
     for f in &figs.fits {
         s.push_str(&format!("### {}\n\n", f.title));
@@ -95,8 +107,12 @@ pub fn subject_markdown(v: &SubjectValidation, figs: &ReportFigures) -> String {
     s.push_str(&chart(&figs.radii));
     s.push_str(&table_markdown(&tables::marker_radius_table(v)));
     s.push_str("## 3. Joint centres and axes against the truth\n\n");
-    s.push_str(&chart(&figs.joint_errors));
-    s.push_str(&table_markdown(&tables::joint_table(v)));
+    if let (Some(joint_errors), Some(table)) = (&figs.joint_errors, tables::joint_table(v)) {
+        s.push_str(&chart(joint_errors));
+        s.push_str(&table_markdown(&table));
+    } else {
+        s.push_str(&format!("{}\n\n", tables::SKIPPED_TRUTH));
+    }
     s.push_str("## 4. Dimensions\n\n");
     s.push_str(&table_markdown(&tables::dimension_table(v)));
     s.push_str("## 5. Link lengths\n\n");

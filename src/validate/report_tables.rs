@@ -92,24 +92,60 @@ pub fn median(v: &[f64]) -> f64 {
     v[v.len() / 2]
 }
 
-/// The medians the suite and the summary cards quote: 3-DOF centres, 1-DOF centres, axes.
+/// Why the error map section is missing (one sentence, for the report).
+pub const SKIPPED_SURFACE: &str = "Skipped: the subject folder has no reference.ply (a CT-like scan of the hand), so there is no surface to measure the skin against.";
+/// Why the joint-centre section is missing (one sentence, for the report).
+pub const SKIPPED_TRUTH: &str = "Skipped: the subject folder has no truth.json (only simulated subjects know their true joints), so the estimated centres and axes have nothing to be compared with.";
+
+/// One sentence naming the references this report was measured against and the sections
+/// skipped for want of the others; `None` when both optional references were present (a
+/// simulated subject's report says nothing about them, as before).
+pub fn references_sentence(v: &SubjectValidation) -> Option<String> {
+    let r = v.references;
+    if r.reference_ply && r.truth_json {
+        return None;
+    }
+    let mut present = vec!["subject.toml's caliper dimensions"];
+    let mut absent = Vec::new();
+    if r.reference_ply {
+        present.insert(0, "reference.ply");
+    } else {
+        absent.push(
+            "reference.ply absent, so section 1 (skin against the reference surface) is skipped",
+        );
+    }
+    if r.truth_json {
+        present.insert(0, "truth.json");
+    } else {
+        absent.push("truth.json absent, so section 3 (joint centres and axes against the truth) is skipped and dimensions and link lengths are shown without true values");
+    }
+    Some(format!(
+        "References: {} present; {}.",
+        present.join(" and "),
+        absent.join("; ")
+    ))
+}
+
+/// The medians the suite and the summary cards quote: 3-DOF centres, 1-DOF centres, axes
+/// (NaN without `truth.json`).
 pub fn link_medians(v: &SubjectValidation) -> (f64, f64, f64) {
+    let Some(link) = &v.link else {
+        return (f64::NAN, f64::NAN, f64::NAN);
+    };
     let dof = |e: &super::JointError| Joint::from_name(&e.joint).map(|j| j.dof());
-    let c3: Vec<f64> = v
-        .link
+    let c3: Vec<f64> = link
         .joints
         .iter()
         .filter(|e| dof(e) == Some(3))
         .map(|e| e.centre_mm)
         .collect();
-    let c1: Vec<f64> = v
-        .link
+    let c1: Vec<f64> = link
         .joints
         .iter()
         .filter(|e| dof(e) == Some(1))
         .map(|e| e.centre_mm)
         .collect();
-    let ax: Vec<f64> = v.link.joints.iter().filter_map(|e| e.axis_deg).collect();
+    let ax: Vec<f64> = link.joints.iter().filter_map(|e| e.axis_deg).collect();
     (median(&c3), median(&c1), median(&ax))
 }
 
@@ -117,43 +153,46 @@ pub fn link_medians(v: &SubjectValidation) -> (f64, f64, f64) {
 pub fn key_figures(v: &SubjectValidation) -> Vec<(String, String, String)> {
     let (c3, c1, ax) = link_medians(v);
     let total: f64 = v.reconstruct_timings_s.values().sum();
-    let mut k = vec![
-        (
+    let mut k = Vec::new();
+    if let (Some(s), Some(r)) = (&v.surface, &v.surface_reverse) {
+        k.push((
             "skin → reference".into(),
-            format!("{:.2} mm", v.surface.mean_mm),
+            format!("{:.2} mm", s.mean_mm),
             format!(
                 "mean distance; 95th percentile {:.2}, max {:.2} mm",
-                v.surface.p95_mm, v.surface.max_mm
+                s.p95_mm, s.max_mm
             ),
-        ),
-        (
+        ));
+        k.push((
             "reference → skin".into(),
-            format!("{:.2} mm", v.surface_reverse.mean_mm),
-            format!("mean distance; max {:.2} mm", v.surface_reverse.max_mm),
-        ),
-        (
+            format!("{:.2} mm", r.mean_mm),
+            format!("mean distance; max {:.2} mm", r.max_mm),
+        ));
+    }
+    if v.link.is_some() {
+        k.push((
             "joint centres".into(),
             format!("{c3:.2} / {c1:.2} mm"),
             "median error, 3-DOF / 1-DOF joints".into(),
-        ),
-        (
+        ));
+        k.push((
             "hinge axes".into(),
             format!("{ax:.2}°"),
             "median angle to the true axis".into(),
+        ));
+    }
+    k.push((
+        "dimensions".into(),
+        format!(
+            "{} ± {:.3} mm",
+            signed(v.dimensions.mean_vs_given_mm, 3),
+            v.dimensions.sd_vs_given_mm
         ),
-        (
-            "dimensions".into(),
-            format!(
-                "{} ± {:.3} mm",
-                signed(v.dimensions.mean_vs_given_mm, 3),
-                v.dimensions.sd_vs_given_mm
-            ),
-            format!(
-                "{} caliper dimensions on the skin − given",
-                v.dimensions.dimensions.len()
-            ),
+        format!(
+            "{} caliper dimensions on the skin − given",
+            v.dimensions.dimensions.len()
         ),
-    ];
+    ));
     if total > 0.0 {
         k.push((
             "reconstruction".into(),
@@ -164,8 +203,11 @@ pub fn key_figures(v: &SubjectValidation) -> Vec<(String, String, String)> {
     k
 }
 
-/// Distances both ways, with the seed paper's figures for comparison.
-pub fn surface_table(v: &SubjectValidation) -> Table {
+/// Distances both ways, with the seed paper's figures for comparison (`None` without
+/// `reference.ply`).
+pub fn surface_table(v: &SubjectValidation) -> Option<Table> {
+    let (surface, reverse) = (v.surface.as_ref()?, v.surface_reverse.as_ref()?);
+    let (stride, vertices) = (v.reference_stride?, v.reference_vertices?);
     let mut t = Table::new(
         &[
             "direction",
@@ -179,8 +221,8 @@ pub fn surface_table(v: &SubjectValidation) -> Table {
         &[false, true, true, true, true, true, true],
     );
     for (name, s) in [
-        ("skin.obj vertices → reference.ply", &v.surface),
-        ("reference.ply vertices → skin.obj", &v.surface_reverse),
+        ("skin.obj vertices → reference.ply", surface),
+        ("reference.ply vertices → skin.obj", reverse),
     ] {
         t.rows.push(vec![
             Cell::new(name),
@@ -204,19 +246,18 @@ pub fn surface_table(v: &SubjectValidation) -> Table {
     t.summary_rows = 1;
     t.note = format!(
         "Reference → skin measures every {}th of the reference's {} vertices (an even sample of the isosurface).",
-        v.reference_stride, v.reference_vertices
+        stride, vertices
     );
-    if v.reference_stride == 1 {
-        t.note = format!(
-            "Reference → skin measures all {} vertices of the reference.",
-            v.reference_vertices
-        );
+    if stride == 1 {
+        t.note = format!("Reference → skin measures all {vertices} vertices of the reference.");
     }
-    t
+    Some(t)
 }
 
-/// Per joint: estimator, range of motion, centre and axis errors against the truth.
-pub fn joint_table(v: &SubjectValidation) -> Table {
+/// Per joint: estimator, range of motion, centre and axis errors against the truth (`None`
+/// without `truth.json`).
+pub fn joint_table(v: &SubjectValidation) -> Option<Table> {
+    let link = v.link.as_ref()?;
     let mut t = Table::new(
         &[
             "joint",
@@ -229,7 +270,7 @@ pub fn joint_table(v: &SubjectValidation) -> Table {
         ],
         &[false, true, false, false, true, true, true],
     );
-    for e in &v.link.joints {
+    for e in &link.joints {
         let fit = v.joint_fits.iter().find(|f| f.joint == e.joint);
         t.rows.push(vec![
             Cell::new(&e.joint),
@@ -261,11 +302,15 @@ pub fn joint_table(v: &SubjectValidation) -> Table {
     t.note = format!(
         "Highlighted: centre errors above {FLAG_CENTRE_MM} mm, axis errors above {FLAG_AXIS_DEG}°. 1-DOF centres are the ones after section 3.6 (slid along the axis onto the skin's cross-section)."
     );
-    t
+    Some(t)
 }
 
-/// The caliper dimensions measured on the skin against the given and the true values.
+/// The caliper dimensions measured on the skin against the given and the true values (the
+/// true columns only when `truth.json` gave them).
 pub fn dimension_table(v: &SubjectValidation) -> Table {
+    if v.dimensions.vs_true_mm.is_none() {
+        return dimension_table_given(v);
+    }
     let mut t = Table::new(
         &[
             "dimension",
@@ -314,20 +359,51 @@ pub fn dimension_table(v: &SubjectValidation) -> Table {
     t
 }
 
-/// Link lengths between consecutive joint centres, estimated and true.
+/// [`dimension_table`] of a subject without true dimensions: on the skin against the given.
+fn dimension_table_given(v: &SubjectValidation) -> Table {
+    let mut t = Table::new(
+        &["dimension", "on skin", "given", "skin − given (mm)"],
+        &[false, true, true, true],
+    );
+    for d in &v.dimensions.dimensions {
+        let vs_given = d.skin_mm - d.given_mm;
+        t.rows.push(vec![
+            Cell::new(d.name.replace('_', " ")),
+            Cell::new(f2(d.skin_mm)),
+            Cell::new(f2(d.given_mm)),
+            Cell::flagged(signed(vs_given, 3), vs_given.abs() > FLAG_DIMENSION_MM),
+        ]);
+    }
+    t.rows.push(vec![
+        Cell::new("mean ± SD"),
+        Cell::new(""),
+        Cell::new(""),
+        Cell::new(format!(
+            "{} ± {:.3}",
+            signed(v.dimensions.mean_vs_given_mm, 3),
+            v.dimensions.sd_vs_given_mm
+        )),
+    ]);
+    t.summary_rows = 1;
+    t.note = format!(
+        "The seed paper: 0.04 ± 0.13 mm against the given dimensions. Highlighted: differences above {FLAG_DIMENSION_MM} mm from the given caliper values."
+    );
+    t
+}
+
+/// Link lengths between consecutive joint centres, estimated and true (estimated only
+/// without `truth.json`).
 pub fn link_length_table(v: &SubjectValidation) -> Table {
+    let Some(link) = &v.link else {
+        return model_link_length_table(v);
+    };
     let mut t = Table::new(
         &["link", "estimated", "true", "difference (mm)"],
         &[false, true, true, true],
     );
     // Digit order (thumb to little), proximal first, as the joints are numbered.
-    let mut links: Vec<(&String, &(f64, f64))> = v.link.link_lengths.iter().collect();
-    links.sort_by_key(|(k, _)| {
-        k.split('-')
-            .next()
-            .and_then(Joint::from_name)
-            .map_or(usize::MAX, |j| j.index())
-    });
+    let mut links: Vec<(&String, &(f64, f64))> = link.link_lengths.iter().collect();
+    links.sort_by_key(|(k, _)| digit_order(k));
     for (k, (m, tr)) in links {
         t.rows.push(vec![
             Cell::new(k.replace('-', " – ")),
@@ -336,7 +412,31 @@ pub fn link_length_table(v: &SubjectValidation) -> Table {
             Cell::flagged(signed(m - tr, 2), (m - tr).abs() > FLAG_CENTRE_MM),
         ]);
     }
-    t.note = "Repeatability (mean and SD over repeated sessions of one hand) needs repeats: ergohand validate --suite reports it for the suite's repeated subjects. The seed paper: index MCP–PIP 45.54 ± 0.52 mm, PIP–DIP 24.60 ± 0.92 mm over five recordings of the calibration motions (trial repeats: reports/link-repeatability.md).".into();
+    t.note = LINK_LENGTH_NOTE.into();
+    t
+}
+
+const LINK_LENGTH_NOTE: &str = "Repeatability (mean and SD over repeated sessions of one hand) needs repeats: ergohand validate --suite reports it for the suite's repeated subjects. The seed paper: index MCP–PIP 45.54 ± 0.52 mm, PIP–DIP 24.60 ± 0.92 mm over five recordings of the calibration motions (trial repeats: reports/link-repeatability.md).";
+
+/// Digit order (thumb to little), proximal first, as the joints are numbered, of a link
+/// length's key (`I_MCP-I_PIP`).
+fn digit_order(key: &str) -> usize {
+    key.split('-')
+        .next()
+        .and_then(Joint::from_name)
+        .map_or(usize::MAX, |j| j.index())
+}
+
+/// [`link_length_table`] of a subject without truth: the model's own lengths.
+fn model_link_length_table(v: &SubjectValidation) -> Table {
+    let mut t = Table::new(&["link", "estimated (mm)"], &[false, true]);
+    let mut links: Vec<(&String, &f64)> = v.link_lengths_mm.iter().collect();
+    links.sort_by_key(|(k, _)| digit_order(k));
+    for (k, m) in links {
+        t.rows
+            .push(vec![Cell::new(k.replace('-', " – ")), Cell::new(f2(*m))]);
+    }
+    t.note = LINK_LENGTH_NOTE.into();
     t
 }
 

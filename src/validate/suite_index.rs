@@ -48,15 +48,20 @@ pub fn repeat_groups(rows: &[SuiteRow]) -> Vec<RepeatGroup> {
         .filter(|g| g.1.len() >= 2)
         .map(|(_, members)| {
             let mut links = BTreeMap::new();
-            for k in members[0].validation.link.link_lengths.keys() {
+            // Suite subjects carry truth.json (`validate --suite` checks it); a member without
+            // contributes no lengths.
+            fn lengths<'a>(m: &SuiteRow<'a>) -> Option<&'a BTreeMap<String, (f64, f64)>> {
+                m.validation.link.as_ref().map(|l| &l.link_lengths)
+            }
+            let first = members.iter().find_map(|m| lengths(m));
+            for (k, &(_, truth)) in first.into_iter().flatten() {
                 let v: Vec<f64> = members
                     .iter()
-                    .filter_map(|m| m.validation.link.link_lengths.get(k).map(|x| x.0))
+                    .filter_map(|m| lengths(m)?.get(k).map(|x| x.0))
                     .collect();
                 let n = v.len() as f64;
                 let mean = v.iter().sum::<f64>() / n;
                 let sd = (v.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / (n - 1.0)).sqrt();
-                let truth = members[0].validation.link.link_lengths[k].1;
                 links.insert(k.clone(), (mean, sd, truth));
             }
             RepeatGroup {
@@ -95,6 +100,20 @@ pub fn relative_link(from: &Path, to: &Path) -> String {
     parts.join("/")
 }
 
+/// Mean and max of `skin → reference` (NaN without `reference.ply`: never in the suite).
+fn surf(v: &SubjectValidation) -> (f64, f64) {
+    v.surface
+        .as_ref()
+        .map_or((f64::NAN, f64::NAN), |s| (s.mean_mm, s.max_mm))
+}
+
+/// Mean and max of `reference → skin` (NaN without `reference.ply`).
+fn surf_reverse(v: &SubjectValidation) -> (f64, f64) {
+    v.surface_reverse
+        .as_ref()
+        .map_or((f64::NAN, f64::NAN), |s| (s.mean_mm, s.max_mm))
+}
+
 fn f2(x: f64) -> String {
     if x.is_finite() {
         format!("{x:.2}")
@@ -122,10 +141,10 @@ pub fn suite_index_html(rows: &[SuiteRow], dir: &Path) -> String {
         ),
         (
             "skin → reference",
-            format!("{:.2} mm", mean_of(&|v| v.surface.mean_mm)),
+            format!("{:.2} mm", mean_of(&|v| surf(v).0)),
             format!(
                 "mean of the means; worst max {:.2} mm",
-                max_of(&|v| v.surface.max_mm)
+                max_of(&|v| surf(v).1)
             ),
         ),
         (
@@ -172,20 +191,27 @@ pub fn suite_index_html(rows: &[SuiteRow], dir: &Path) -> String {
         let rec: f64 = v.reconstruct_timings_s.values().sum();
         let val: f64 = v.validate_timings_s.iter().map(|x| x.1).sum();
         b.push_str(&format!(
-            "<tr><td><a href=\"{}\"><b>{}</b></a><br><span class=\"n\">{} · {} hand · {} posture{}</span></td><td><img class=\"thumb\" src=\"{}\" alt=\"error map of {}\"></td><td class=\"num\">{:.1}</td><td class=\"num\">{} / {}</td><td class=\"num\">{} / {}</td><td class=\"num\">{} / {}</td><td class=\"num\">{}</td><td class=\"num\">{} ± {:.3}</td><td class=\"num\">{:.1} / {:.1}</td></tr>\n",
+            "<tr><td><a href=\"{}\"><b>{}</b></a><br><span class=\"n\">{} · {} hand · {} posture{}</span></td><td>{}</td><td class=\"num\">{}</td><td class=\"num\">{} / {}</td><td class=\"num\">{} / {}</td><td class=\"num\">{} / {}</td><td class=\"num\">{}</td><td class=\"num\">{} ± {:.3}</td><td class=\"num\">{:.1} / {:.1}</td></tr>\n",
             esc(&link),
             esc(&r.name),
             r.opts.preset.name(),
             r.opts.hand,
             format!("{:?}", r.opts.posture).to_lowercase(),
             if r.opts.repeat > 0 { format!(" · session {}", r.opts.repeat + 1) } else { String::new() },
-            png_data_uri(&v.thumbnail_png),
-            esc(&r.name),
-            v.colour_scale_top_mm,
-            f2(v.surface.mean_mm),
-            f2(v.surface.max_mm),
-            f2(v.surface_reverse.mean_mm),
-            f2(v.surface_reverse.max_mm),
+            v.thumbnail_png.as_ref().map_or_else(
+                || "–".to_string(),
+                |png| format!(
+                    "<img class=\"thumb\" src=\"{}\" alt=\"error map of {}\">",
+                    png_data_uri(png),
+                    esc(&r.name)
+                )
+            ),
+            v.colour_scale_top_mm
+                .map_or_else(|| "–".to_string(), |t| format!("{t:.1}")),
+            f2(surf(v).0),
+            f2(surf(v).1),
+            f2(surf_reverse(v).0),
+            f2(surf_reverse(v).1),
             f2(c3),
             f2(c1),
             f2(ax),
@@ -237,14 +263,11 @@ pub fn suite_index_html(rows: &[SuiteRow], dir: &Path) -> String {
                 flag: false,
             },
             Cell {
-                text: f2(m(&|v| v.surface.mean_mm)),
+                text: f2(m(&|v| surf(v).0)),
                 flag: false,
             },
             Cell {
-                text: f2(g
-                    .iter()
-                    .map(|r| r.validation.surface.max_mm)
-                    .fold(0.0, f64::max)),
+                text: f2(g.iter().map(|r| surf(r.validation).1).fold(0.0, f64::max)),
                 flag: false,
             },
             Cell {
