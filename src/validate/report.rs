@@ -140,11 +140,11 @@ impl SubjectValidation {
         match (&self.link, &self.surface) {
             (Some(l), Some(s)) => Ok((l, s)),
             (None, _) => Err(Error::input(
-                &subject_dir.join("truth.json"),
+                subject_dir.join("truth.json"),
                 "missing: needed here to compare the link model with the truth",
             )),
             (_, None) => Err(Error::input(
-                &subject_dir.join("reference.ply"),
+                subject_dir.join("reference.ply"),
                 "missing: needed here to compare the skin with the reference surface",
             )),
         }
@@ -291,7 +291,7 @@ pub fn validate_subject(
     lap("charts (PNG and SVG)", &mut t);
 
     let (error_map_png, thumbnail_png, top) = match map_pictures {
-        Some((a, b, c)) => (Some(a), Some(b), Some(c)),
+        Some(p) => (Some(p.picture), Some(p.thumbnail_png), Some(p.top)),
         None => (None, None, None),
     };
     let figures = ReportFigures {
@@ -351,10 +351,19 @@ pub fn validate_subject(
     Ok((v, figures))
 }
 
+/// What [`error_map_pictures`] made.
+struct ErrorMapPictures {
+    /// `error-map.png`: file and PNG bytes.
+    picture: (PathBuf, Vec<u8>),
+    /// `error-map-small.png`'s bytes.
+    thumbnail_png: Vec<u8>,
+    /// Top of the colour scale, mm.
+    top: f64,
+}
+
 /// The error map's pictures in `report`: `error-map.png` (four views, with the statistics in
 /// the title), `error-map-small.png` (the suite's thumbnail) and `error-map.glb` (the skin
-/// with vertex colours). Returns the big picture (file, PNG bytes), the thumbnail's PNG bytes
-/// and the colour scale's top, mm.
+/// with vertex colours).
 fn error_map_pictures(
     name: &str,
     map: &super::error_map::ErrorMap,
@@ -362,7 +371,7 @@ fn error_map_pictures(
     joints: &BTreeMap<String, crate::skeleton::record::JointRecord>,
     model_path: &Path,
     report: &Path,
-) -> Result<((PathBuf, Vec<u8>), Vec<u8>, f64)> {
+) -> Result<ErrorMapPictures> {
     let top = colour_scale_top(&map.skin_to_reference);
     let dirs = hand_directions(joints, model_path)?;
     let title = format!(
@@ -385,5 +394,9 @@ fn error_map_pictures(
         &map.skin_to_reference,
         top,
     )?;
-    Ok(((map_path, map_png), thumbnail_png, top))
+    Ok(ErrorMapPictures {
+        picture: (map_path, map_png),
+        thumbnail_png,
+        top,
+    })
 }
