@@ -508,16 +508,19 @@ pub fn validate(subject_dir: &Path, model: &Path, report: &Path, log: &Log) -> R
                 println!("{k:12} {m:>8.2}");
             }
         }
-        println!("dimension                     on skin    given     true (mm)");
+        // The true column only when truth.json gave true values.
+        let with_true = dims.vs_true_mm.is_some();
+        println!(
+            "dimension                     on skin    given{}",
+            if with_true { "     true (mm)" } else { " (mm)" }
+        );
         for e in &dims.dimensions {
-            let t = e
-                .true_mm
-                .map(|t| format!("{t:.2}"))
-                .unwrap_or_else(|| "-".into());
-            println!(
-                "{:28} {:>8.3} {:>8.3} {:>8}",
-                e.name, e.skin_mm, e.given_mm, t
-            );
+            let t = match (with_true, e.true_mm) {
+                (false, _) => String::new(),
+                (true, Some(t)) => format!(" {t:>8.2}"),
+                (true, None) => format!(" {:>8}", "-"),
+            };
+            println!("{:28} {:>8.3} {:>8.3}{t}", e.name, e.skin_mm, e.given_mm);
         }
         println!(
             "dimensions on skin - given: mean {:+.3} mm, SD {:.3} mm",

@@ -308,9 +308,6 @@ pub fn joint_table(v: &SubjectValidation) -> Option<Table> {
 /// The caliper dimensions measured on the skin against the given and the true values (the
 /// true columns only when `truth.json` gave them).
 pub fn dimension_table(v: &SubjectValidation) -> Table {
-    if v.dimensions.vs_true_mm.is_none() {
-        return dimension_table_given(v);
-    }
     let mut t = Table::new(
         &[
             "dimension",
@@ -356,38 +353,21 @@ pub fn dimension_table(v: &SubjectValidation) -> Table {
     t.note = format!(
         "The seed paper: 0.04 ± 0.13 mm against the given dimensions. Highlighted: differences above {FLAG_DIMENSION_MM} mm from the given, {FLAG_DIMENSION_TRUE_MM} mm from the true values. The given values are simulated caliper readings, so skin − true includes the caliper's own error."
     );
-    t
-}
-
-/// [`dimension_table`] of a subject without true dimensions: on the skin against the given.
-fn dimension_table_given(v: &SubjectValidation) -> Table {
-    let mut t = Table::new(
-        &["dimension", "on skin", "given", "skin − given (mm)"],
-        &[false, true, true, true],
-    );
-    for d in &v.dimensions.dimensions {
-        let vs_given = d.skin_mm - d.given_mm;
-        t.rows.push(vec![
-            Cell::new(d.name.replace('_', " ")),
-            Cell::new(f2(d.skin_mm)),
-            Cell::new(f2(d.given_mm)),
-            Cell::flagged(signed(vs_given, 3), vs_given.abs() > FLAG_DIMENSION_MM),
-        ]);
+    if v.dimensions.vs_true_mm.is_none() {
+        // No truth.json: the true columns would be empty.
+        for r in t.rows.iter_mut() {
+            r.remove(5);
+            r.remove(3);
+        }
+        for k in [5, 3] {
+            t.head.remove(k);
+            t.numeric.remove(k);
+        }
+        t.head[3] = "skin − given (mm)".into();
+        t.note = format!(
+            "The seed paper: 0.04 ± 0.13 mm against the given dimensions. Highlighted: differences above {FLAG_DIMENSION_MM} mm from the given caliper values."
+        );
     }
-    t.rows.push(vec![
-        Cell::new("mean ± SD"),
-        Cell::new(""),
-        Cell::new(""),
-        Cell::new(format!(
-            "{} ± {:.3}",
-            signed(v.dimensions.mean_vs_given_mm, 3),
-            v.dimensions.sd_vs_given_mm
-        )),
-    ]);
-    t.summary_rows = 1;
-    t.note = format!(
-        "The seed paper: 0.04 ± 0.13 mm against the given dimensions. Highlighted: differences above {FLAG_DIMENSION_MM} mm from the given caliper values."
-    );
     t
 }
 
@@ -491,4 +471,92 @@ pub fn runtime_table(v: &SubjectValidation) -> Table {
         t.note = "No report.json in the model folder: reconstruct's timings are unknown.".into();
     }
     t
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::anatomy::Side;
+    use crate::validate::dimension_accuracy::{DimensionAccuracy, DimensionError};
+    use crate::validate::report::References;
+    use std::collections::BTreeMap;
+
+    fn validation(reference_ply: bool, truth_json: bool) -> SubjectValidation {
+        let true_mm = truth_json.then_some(20.0);
+        SubjectValidation {
+            subject: "S".into(),
+            hand: Side::Right,
+            references: References {
+                reference_ply,
+                truth_json,
+            },
+            link: None,
+            link_lengths_mm: BTreeMap::from([("I_MCP-I_PIP".to_string(), 45.0)]),
+            surface: None,
+            surface_reverse: None,
+            reference_vertices: None,
+            reference_stride: None,
+            colour_scale_top_mm: None,
+            dimensions: DimensionAccuracy {
+                dimensions: vec![DimensionError {
+                    name: "wrist_breadth".into(),
+                    skin_mm: 21.0,
+                    given_mm: 20.0,
+                    true_mm,
+                }],
+                mean_vs_given_mm: 1.0,
+                sd_vs_given_mm: 0.0,
+                vs_true_mm: true_mm.map(|_| (1.0, 0.0)),
+            },
+            joint_fits: Vec::new(),
+            reconstruct_timings_s: BTreeMap::new(),
+            validate_timings_s: Vec::new(),
+            warnings: Vec::new(),
+            files: Vec::new(),
+            thumbnail_png: None,
+        }
+    }
+
+    /// One sentence per combination naming exactly the absent references; none for a
+    /// subject with both.
+    #[test]
+    fn references_sentence_names_what_is_missing() {
+        for (reference, truth) in [(true, true), (true, false), (false, true), (false, false)] {
+            let s = references_sentence(&validation(reference, truth));
+            let Some(s) = s else {
+                assert!(reference && truth);
+                continue;
+            };
+            assert!(!(reference && truth));
+            assert!(s.ends_with('.') && !s.contains(". "), "{s}");
+            assert_eq!(s.contains("reference.ply absent"), !reference, "{s}");
+            assert_eq!(s.contains("truth.json absent"), !truth, "{s}");
+            assert_eq!(s.contains("section 1"), !reference, "{s}");
+            assert_eq!(s.contains("section 3"), !truth, "{s}");
+        }
+    }
+
+    /// Without truth the dimension table has no true columns (rather than columns of dashes)
+    /// and the same skin − given figures; without truth nothing needs `link` to be present.
+    #[test]
+    fn tables_without_truth_drop_the_true_columns() {
+        let with = dimension_table(&validation(true, true));
+        let without = dimension_table(&validation(true, false));
+        assert_eq!(with.head.len(), 6);
+        assert_eq!(
+            without.head,
+            ["dimension", "on skin", "given", "skin − given (mm)"]
+        );
+        assert_eq!(without.numeric.len(), 4);
+        for (a, b) in with.rows.iter().zip(&without.rows) {
+            assert_eq!(b.len(), 4);
+            assert_eq!((&a[0], &a[1], &a[2], &a[4]), (&b[0], &b[1], &b[2], &b[3]));
+        }
+        assert_eq!(without.rows[0][3].text, "+1.000");
+        assert!(joint_table(&validation(true, false)).is_none());
+        assert!(surface_table(&validation(false, false)).is_none());
+        let links = link_length_table(&validation(false, false));
+        assert_eq!(links.head.len(), 2);
+        assert_eq!(links.rows[0][1].text, "45.00");
+    }
 }
