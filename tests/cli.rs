@@ -77,6 +77,20 @@ fn synth_writes_a_subject_and_refuses_bad_options() {
     assert!(error_line(&o).contains(blocked.to_str().unwrap()));
 }
 
+/// `ergohand validate SUBJECT --model MODEL --report REPORT -q`, which must succeed.
+fn validate(subject: &Path, model: &Path, report: &Path) {
+    let v = ergohand(&[
+        "validate",
+        subject.to_str().unwrap(),
+        "--model",
+        model.to_str().unwrap(),
+        "--report",
+        report.to_str().unwrap(),
+        "-q",
+    ]);
+    assert!(v.status.success(), "{}", stderr(&v));
+}
+
 /// The subject folder `subj` as a lab without simulation would have it: subject.toml and the
 /// trials, plus `reference.ply` when `with_reference` (hard links, nothing copied).
 fn real_subject(subj: &Path, to: &Path, with_reference: bool) {
@@ -101,16 +115,7 @@ fn validate_like_a_real_subject(subj: &Path, model: &Path, full: &serde_json::Va
         let sdir = tmp.join(format!("S-{with_reference}"));
         let rep = tmp.join(format!("rep-{with_reference}"));
         real_subject(subj, &sdir, with_reference);
-        let v = ergohand(&[
-            "validate",
-            sdir.to_str().unwrap(),
-            "--model",
-            model.to_str().unwrap(),
-            "--report",
-            rep.to_str().unwrap(),
-            "-q",
-        ]);
-        assert!(v.status.success(), "{}", stderr(&v));
+        validate(&sdir, model, &rep);
         let m: serde_json::Value =
             serde_json::from_str(&std::fs::read_to_string(rep.join("metrics.json")).unwrap())
                 .unwrap();
@@ -210,16 +215,7 @@ fn reconstruct_and_validate_a_simulated_subject() {
     let r = ergohand(&["reconstruct", s, "--out", o, "-q"]);
     assert!(r.status.success(), "{}", stderr(&r));
     assert!(out.join("link_model.json").is_file() && out.join("report.json").is_file());
-    let v = ergohand(&[
-        "validate",
-        s,
-        "--model",
-        o,
-        "--report",
-        out.join("rep").to_str().unwrap(),
-        "-q",
-    ]);
-    assert!(v.status.success(), "{}", stderr(&v));
+    validate(&subj, &out, &out.join("rep"));
     let metrics: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("rep/metrics.json")).unwrap())
             .unwrap();
@@ -392,16 +388,7 @@ fn reconstruct_and_validate_a_simulated_subject() {
     ]);
     assert!(r.status.success(), "{}", stderr(&r));
     let rep2 = o2.join("rep");
-    let v = ergohand(&[
-        "validate",
-        s,
-        "--model",
-        o2.to_str().unwrap(),
-        "--report",
-        rep2.to_str().unwrap(),
-        "-q",
-    ]);
-    assert!(v.status.success(), "{}", stderr(&v));
+    validate(&subj, &o2, &rep2);
     let surface = |p: &Path| -> f64 {
         let m: serde_json::Value =
             serde_json::from_str(&std::fs::read_to_string(p.join("metrics.json")).unwrap())
