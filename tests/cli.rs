@@ -91,13 +91,16 @@ fn validate(subject: &Path, model: &Path, report: &Path) {
     assert!(v.status.success(), "{}", stderr(&v));
 }
 
-/// The subject folder `subj` as a lab without simulation would have it: subject.toml and the
-/// trials, plus `reference.ply` when `with_reference` (hard links, nothing copied).
-fn real_subject(subj: &Path, to: &Path, with_reference: bool) {
+/// The subject folder `subj` with only subject.toml and the trials, plus `reference.ply` and
+/// `truth.json` as asked (hard links, nothing copied): a lab subject without simulation.
+fn partial_subject(subj: &Path, to: &Path, with_reference: bool, with_truth: bool) {
     std::fs::create_dir_all(to.join("trials")).unwrap();
     let mut files = vec![std::path::PathBuf::from("subject.toml")];
     if with_reference {
         files.push("reference.ply".into());
+    }
+    if with_truth {
+        files.push("truth.json".into());
     }
     for e in std::fs::read_dir(subj.join("trials")).unwrap() {
         files.push(Path::new("trials").join(e.unwrap().file_name()));
@@ -107,21 +110,26 @@ fn real_subject(subj: &Path, to: &Path, with_reference: bool) {
     }
 }
 
-/// `validate` on the same reconstruction without `truth.json` (then without `reference.ply`
-/// too) succeeds, writes `null` for what needs the missing file, the very numbers of the full
-/// validation (`full`, its metrics.json) for everything else, and says what it skipped.
+/// `validate` on the same reconstruction without `truth.json`, without both references, and
+/// without `reference.ply` alone succeeds, writes `null` for what needs the missing file, the
+/// very numbers of the full validation (`full`, its metrics.json) for everything else, and
+/// says what it skipped.
 fn validate_like_a_real_subject(subj: &Path, model: &Path, full: &serde_json::Value, tmp: &Path) {
-    for with_reference in [true, false] {
-        let sdir = tmp.join(format!("S-{with_reference}"));
-        let rep = tmp.join(format!("rep-{with_reference}"));
-        real_subject(subj, &sdir, with_reference);
+    for (with_reference, with_truth) in [(true, false), (false, false), (false, true)] {
+        let sdir = tmp.join(format!("S-{with_reference}-{with_truth}"));
+        let rep = tmp.join(format!("rep-{with_reference}-{with_truth}"));
+        partial_subject(subj, &sdir, with_reference, with_truth);
         validate(&sdir, model, &rep);
         let m: serde_json::Value =
             serde_json::from_str(&std::fs::read_to_string(rep.join("metrics.json")).unwrap())
                 .unwrap();
-        assert!(m["link"].is_null(), "{}", m["link"]);
-        assert_eq!(m["references"]["truth_json"], false);
+        assert_eq!(m["references"]["truth_json"], with_truth);
         assert_eq!(m["references"]["reference_ply"], with_reference);
+        if with_truth {
+            assert_eq!(m["link"], full["link"]);
+        } else {
+            assert!(m["link"].is_null(), "{}", m["link"]);
+        }
         // The model's own link lengths are the estimated ones of the full validation.
         let lengths = m["link_lengths_mm"].as_object().unwrap();
         let full_lengths = full["link"]["link_lengths"].as_object().unwrap();
@@ -129,17 +137,21 @@ fn validate_like_a_real_subject(subj: &Path, model: &Path, full: &serde_json::Va
         for (k, l) in lengths {
             assert_eq!(l, &full_lengths[k][0], "{k}");
         }
-        // Dimensions against the calipers: the same numbers, without true values.
+        // Dimensions against the calipers: the same numbers, with true values only with truth.
         let (d, fd) = (&m["dimensions"], &full["dimensions"]);
         assert_eq!(d["mean_vs_given_mm"], fd["mean_vs_given_mm"]);
         assert_eq!(d["sd_vs_given_mm"], fd["sd_vs_given_mm"]);
-        assert!(d["vs_true_mm"].is_null());
+        if with_truth {
+            assert_eq!(d, fd);
+        } else {
+            assert!(d["vs_true_mm"].is_null());
+        }
         let rows = d["dimensions"].as_array().unwrap();
         assert_eq!(rows.len(), 22);
         for (a, b) in rows.iter().zip(fd["dimensions"].as_array().unwrap()) {
             assert_eq!(a["skin_mm"], b["skin_mm"]);
             assert_eq!(a["given_mm"], b["given_mm"]);
-            assert!(a["true_mm"].is_null() && b["true_mm"].is_f64());
+            assert_eq!(a["true_mm"].is_null(), !with_truth);
         }
         assert_eq!(m["joint_fits"], full["joint_fits"]);
         for key in [
@@ -156,15 +168,18 @@ fn validate_like_a_real_subject(subj: &Path, model: &Path, full: &serde_json::Va
             }
         }
         assert_eq!(rep.join("error-map.glb").is_file(), with_reference);
-        assert!(!rep.join("joint-errors.png").exists());
+        assert_eq!(rep.join("joint-errors.png").is_file(), with_truth);
         // The reports say what was skipped and why, are self-contained and link only files
         // that exist.
         let html = std::fs::read_to_string(rep.join("report.html")).unwrap();
         let md = std::fs::read_to_string(rep.join("report.md")).unwrap();
         ergohand::validate::report_html::check_self_contained(&html).unwrap();
         for text in [&html, &md] {
-            assert!(text.contains("truth.json absent"), "truth skip not said");
-            assert!(text.contains("no truth.json"), "truth skip not said");
+            assert_eq!(
+                text.contains("no truth.json") && text.contains("truth.json absent"),
+                !with_truth,
+                "truth skip"
+            );
             assert_eq!(
                 text.contains("no reference.ply") && text.contains("reference.ply absent"),
                 !with_reference,
