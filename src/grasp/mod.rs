@@ -661,6 +661,76 @@ mod tests {
         );
     }
 
+    /// The report of the shipped scene `scenes/NAME.toml` with its grasp type replaced by
+    /// `grasp` (the part read from `scenes/`).
+    fn shipped_as(name: &str, grasp: &str) -> GraspReport {
+        let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes");
+        let text = std::fs::read_to_string(dir.join(format!("{name}.toml"))).unwrap();
+        let part = dir.join(format!("{name}.stl"));
+        let text: String = text
+            .lines()
+            .map(|l| match l.split('=').next().map(str::trim) {
+                Some("type") => format!("type = \"{grasp}\""),
+                Some("file") => format!("file = {:?}", part.display().to_string()),
+                _ => l.to_string(),
+            })
+            .collect::<Vec<_>>()
+            .join("\n");
+        let tmp = tempfile::tempdir().unwrap();
+        let path = tmp.path().join(format!("{name}.toml"));
+        std::fs::write(&path, text).unwrap();
+        let s = scene::read_scene(&path).unwrap();
+        assert_eq!(s.grasp.name(), grasp);
+        run_scene(&s, hand(), true).unwrap().report
+    }
+
+    /// The pen in a lateral (key) pinch: held between the thumb's distal pad and the radial
+    /// side of the index's middle phalanx, off the palm, force closure, and it holds in rapier
+    /// in all six directions.
+    #[test]
+    fn lateral_grasp_of_the_pen_holds() {
+        let r = &shipped_as("pen", "lateral");
+        eprintln!(
+            "lateral pen: fc {} eps {} holds {} tries {} {:?} {:?} {:?}",
+            r.force_closure,
+            r.epsilon,
+            r.holds,
+            r.placement_tries,
+            r.hold_test,
+            r.contact_area_mm2,
+            r.squeeze.depth_mm
+        );
+        let area = |l: &str| r.contact_area_mm2.get(l).copied().unwrap_or(0.0);
+        for pad in ["T_DIST", "I_MID"] {
+            assert!(area(pad) > 0.0, "{pad}: {:?}", r.contact_area_mm2);
+        }
+        let depth = r.squeeze.depth_mm.get("T_DIST").copied().unwrap_or(0.0);
+        assert!(depth > autograsp::SQUEEZE_MM / 2.0, "T_DIST pressed {depth} mm");
+        assert_eq!(area("PALM"), 0.0, "{:?}", r.contact_area_mm2);
+        assert!(r.warnings.is_empty(), "{:?}", r.warnings);
+        assert!(r.force_closure && r.epsilon > 0.0, "{}", r.epsilon);
+        assert!(r.holds, "{:?}", r.hold_test);
+    }
+
+    #[test]
+    #[ignore]
+    fn probe_scenes() {
+        for (n, g) in [("pen", "pinch"), ("mouse", "lateral"), ("phone", "lateral")] {
+            let r = &shipped_as(n, g);
+            eprintln!(
+                "{n} {g}: fc {} eps {} holds {} tries {} {:?} {:?} {:?} {:?}",
+                r.force_closure,
+                r.epsilon,
+                r.holds,
+                r.placement_tries,
+                r.hold_test.trials.iter().map(|t| t.displacement_mm).collect::<Vec<_>>(),
+                r.contact_area_mm2,
+                r.squeeze.depth_mm,
+                r.warnings
+            );
+        }
+    }
+
     /// The shipped pen scene (a 9 mm pen, tripod, placement search) is a real tripod: the pen
     /// is held between the thumb, index and middle distal pads, each pressed in by the
     /// squeeze, off the palm, and it holds in rapier in all six directions.
