@@ -731,10 +731,11 @@ pub fn pad_point(hand: &dyn PosableHand, plan: &GraspPlan) -> Option<Vec3> {
         .min_by(|a, b| (a - mean).norm().total_cmp(&(b - mean).norm()))
 }
 
-/// The direction (grasp frame, unit) in which the pressing pads close onto a plan's
-/// [`GraspPlan::support`]: from the centroid of the pressing pads in the preshape to their
-/// centroid in the closed posture. `None` without a support.
-pub fn press_direction(hand: &dyn PosableHand, plan: &GraspPlan) -> Option<Vec3> {
+/// How the pressing pads close onto a plan's [`GraspPlan::support`] (grasp frame, mm): from the
+/// centroid of the pressing pads' skin in the preshape to their centroid in the closed
+/// posture, where they meet the support; its length is the grasp's opening, the thickest part
+/// that fits between them. `None` without a support.
+pub fn press_travel(hand: &dyn PosableHand, plan: &GraspPlan) -> Option<Vec3> {
     plan.support?;
     let centroid = |t: f64| {
         let tr = link_transforms(
@@ -751,7 +752,7 @@ pub fn press_direction(hand: &dyn PosableHand, plan: &GraspPlan) -> Option<Vec3>
         }
         sum / n.max(1) as f64
     };
-    (centroid(1.0) - centroid(0.0)).try_normalize(1e-9)
+    Some(centroid(1.0) - centroid(0.0))
 }
 
 /// A candidate placement: the grasp frame looks along `-dir` at the part from just outside its
@@ -943,9 +944,11 @@ fn skin_sample(hand: &dyn PosableHand, stride: usize) -> (Vec<usize>, Vec<usize>
 /// rolls uniform), screened cheaply, the best few evaluated in full; the result is the best of
 /// the full evaluations by (pads touching, epsilon, volume, contact area).
 ///
-/// A plan without [`GraspPlan::pads`] (power, lateral) is placed with the palm 3 mm off the
-/// part ([`placement`]); a precision plan with its [`pad_point`] in the part
-/// ([`pad_placement`]), its candidates rank first by how many of its pads touch the part, and
+/// A plan without [`GraspPlan::pads`] (power) is placed with the palm 3 mm off the part
+/// ([`placement`]); a precision plan with its [`pad_point`] in the part ([`pad_placement`]); a
+/// plan with a [`GraspPlan::support`] (lateral) with the part resting on the support where the
+/// thumb's closing line through the centre of mass leaves it ([`support_placement`]). Candidates
+/// of a plan with pads rank first by how many of its pads touch the part, and
 /// its epsilon is that of the pads' contacts: a precision grasp is one held by the pads
 /// (Cutkosky 1989), and epsilon of every contact preferred a tripod held by the thenar and one
 /// fingertip, which is force closure but drops the pen.
@@ -1000,7 +1003,7 @@ pub fn placement_search(
     // (candidate, pads touching, epsilon, volume, contact area)
     type Score = (usize, usize, f64, f64, f64);
     let pad = pad_point(hand, plan);
-    let press = press_direction(hand, plan);
+    let press = press_travel(hand, plan);
     let approach_of = |i: usize| match (&pad, &press) {
         (Some(p), Some(n)) => support_placement(part, &cand[i].0, cand[i].1, p, n),
         (Some(p), None) => pad_placement(part, &cand[i].0, cand[i].1, p),
@@ -1189,7 +1192,10 @@ mod tests {
         let plan = grasp_plan(GraspType::Lateral);
         assert_eq!(plan.pads, vec![Link::TDist, Link::IMid]);
         assert_eq!(plan.support, Some(Link::IMid));
-        assert!(Finger::Index.joints().iter().all(|j| !plan.active[j.index()]));
+        assert!(Finger::Index
+            .joints()
+            .iter()
+            .all(|j| !plan.active[j.index()]));
         let sk = &h.skeleton;
         let radial = (sk.centre(Joint::IMcp) - sk.centre(Joint::MMcp)).normalize();
         let centroid = |l: Link, tr: &[Isometry3<f64>]| {
@@ -1215,7 +1221,9 @@ mod tests {
         let mut buf = Vec::new();
         h.pose_link(Link::IMid.index(), &tr, &mut buf);
         assert!(buf.iter().any(|p| (p.coords - pad).norm() < 1e-9));
-        let press = press_direction(h, &plan).unwrap();
+        let travel = press_travel(h, &plan).unwrap();
+        assert!(travel.norm() > 20.0, "opens {} mm", travel.norm());
+        let press = travel.normalize();
         let thumb0 = {
             let tr = link_transforms(sk, &pose_at(&plan, &[0.0; 16], grasp_frame(h).inverse()));
             centroid(Link::TDist, &tr)
@@ -1365,4 +1373,3 @@ mod tests {
             .all(|&f| f == Finger::Thumb || f == Finger::Index));
     }
 }
-
