@@ -43,9 +43,14 @@ pub struct GraspPlan {
     pub approach_mm: f64,
     /// The links that hold the part in this grasp type and must touch it: the distal pads of
     /// the thumb and the closing fingers in precision grasps (Cutkosky 1989: precision grasps
-    /// hold the part between the pads of the thumb and fingers, off the palm); empty for power
-    /// and lateral grasps, which hold with whatever touches.
+    /// hold the part between the pads of the thumb and fingers, off the palm); the thumb's
+    /// distal pad and the index's middle phalanx in the lateral grasp; empty for power grasps,
+    /// which hold with whatever touches.
     pub pads: Vec<Link>,
+    /// A pad that does not close: the part is placed against it and the thumb presses the part
+    /// onto it (the lateral or key pinch: the thumb pad presses the part against the radial
+    /// side of the flexed index's middle phalanx, Cutkosky 1989; Napier 1956).
+    pub support: Option<Link>,
 }
 
 /// The plan of a grasp type (degrees chosen within the anatomical limits; the wrist stays put).
@@ -92,12 +97,22 @@ pub fn grasp_plan(kind: GraspType) -> GraspPlan {
             [[15.0, 0.0, 0.0], [10.0, 0.0, 0.0], [0.0; 3]],
             [[60.0, 0.0, 0.0], [50.0, 0.0, 0.0], [30.0, 0.0, 0.0]],
         ),
+        // The key pinch: the index stands flexed (MCP 60, PIP 80, DIP 30) and still, the other
+        // fingers curled, and the thumb adducts its pad onto the radial side of the index's
+        // middle phalanx. The closed thumb posture is the one of a grid search over the thumb's
+        // range (5 to 10° steps, template hand) whose distal link's centroid lies closest to
+        // 8 mm radial of the middle phalanx's radial skin (their skins then meet,
+        // `lateral_thumb_meets_the_index_side`); the preshape, from the same grid, opens the
+        // thumb pad 25 mm straight away from it (off the line by 2 mm), room for a key or a
+        // pen. The former plan (index curled to [80, 100, 70] and closing, thumb closing to
+        // [40, -10, 10]) had no pads meeting: the pen was held by the thumb's proximal phalanx
+        // and the index's proximal and distal ones, and dropped.
         GraspType::Lateral => (
-            [[-10.0, 0.0, 0.0], [0.0; 3], [0.0; 3]],
-            [[40.0, -10.0, 10.0], [50.0, 0.0, 0.0], [60.0, 0.0, 0.0]],
+            [[-5.0, 10.0, 0.0], [20.0, 0.0, 0.0], [30.0, 0.0, 0.0]],
+            [[0.0, 5.0, 0.0], [40.0, 0.0, 0.0], [50.0, 0.0, 0.0]],
             vec![Finger::Index],
-            [[30.0, 0.0, 0.0], [60.0, 0.0, 0.0], [30.0, 0.0, 0.0]],
-            [[80.0, 0.0, 0.0], [100.0, 0.0, 0.0], [70.0, 0.0, 0.0]],
+            [[60.0, 0.0, 0.0], [80.0, 0.0, 0.0], [30.0, 0.0, 0.0]],
+            [[60.0, 0.0, 0.0], [80.0, 0.0, 0.0], [30.0, 0.0, 0.0]],
         ),
     };
     for (k, j) in Finger::Thumb.joints().into_iter().enumerate() {
@@ -110,7 +125,8 @@ pub fn grasp_plan(kind: GraspType) -> GraspPlan {
             if closing.contains(&f) {
                 set(&mut pre, j, f_pre[k]);
                 set(&mut closed, j, f_closed[k]);
-                active[j.index()] = true;
+                // The lateral grasp's index is the support: posed, not closed.
+                active[j.index()] = kind != GraspType::Lateral;
             } else {
                 set(&mut pre, j, tucked[k]);
                 set(&mut closed, j, tucked[k]);
@@ -135,7 +151,8 @@ pub fn grasp_plan(kind: GraspType) -> GraspPlan {
         // until the palm touches. Precision grasps hold it with the fingertips, off the palm.
         approach_mm: if kind == GraspType::Power { 40.0 } else { 0.0 },
         pads: match kind {
-            GraspType::Power | GraspType::Lateral => Vec::new(),
+            GraspType::Power => Vec::new(),
+            GraspType::Lateral => vec![Link::TDist, Link::IMid],
             // The thumb with the index and middle (a precision grasp closes all four fingers
             // but is held by the first two; a pinch closes the index alone).
             _ => std::iter::once(Finger::Thumb)
@@ -143,6 +160,7 @@ pub fn grasp_plan(kind: GraspType) -> GraspPlan {
                 .map(|f| digit_links(f)[2])
                 .collect(),
         },
+        support: (kind == GraspType::Lateral).then_some(Link::IMid),
     }
 }
 
@@ -680,8 +698,10 @@ pub fn squeeze(
     (pose_at(plan, &t, root), t, report)
 }
 
-/// Where the plan's pads meet: the mean of the centroids of the [`GraspPlan::pads`] links' skin
-/// in the closed posture, in the [`grasp_frame`]; `None` for a plan without pads.
+/// Where the plan's pads meet, in the [`grasp_frame`], from the closed posture: the mean of
+/// the centroids of the [`GraspPlan::pads`] links' skin; with a [`GraspPlan::support`], the
+/// support's skin vertex nearest the mean centroid of the other pads (where the thumb pad lands
+/// on it). `None` for a plan without pads.
 pub fn pad_point(hand: &dyn PosableHand, plan: &GraspPlan) -> Option<Vec3> {
     if plan.pads.is_empty() {
         return None;
@@ -691,12 +711,48 @@ pub fn pad_point(hand: &dyn PosableHand, plan: &GraspPlan) -> Option<Vec3> {
         &pose_at(plan, &[1.0; 16], grasp_frame(hand).inverse()),
     );
     let mut buf = Vec::new();
-    let mut sum = Vec3::zeros();
-    for l in &plan.pads {
+    let mut centroid = |l: Link| {
         hand.pose_link(l.index(), &tr, &mut buf);
-        sum += buf.iter().map(|p| p.coords).sum::<Vec3>() / buf.len().max(1) as f64;
-    }
-    Some(sum / plan.pads.len() as f64)
+        buf.iter().map(|p| p.coords).sum::<Vec3>() / buf.len().max(1) as f64
+    };
+    let pressing: Vec<Link> = plan
+        .pads
+        .iter()
+        .copied()
+        .filter(|&l| Some(l) != plan.support)
+        .collect();
+    let mean = pressing.iter().map(|&l| centroid(l)).sum::<Vec3>() / pressing.len().max(1) as f64;
+    let Some(s) = plan.support else {
+        return Some(mean);
+    };
+    hand.pose_link(s.index(), &tr, &mut buf);
+    buf.iter()
+        .map(|p| p.coords)
+        .min_by(|a, b| (a - mean).norm().total_cmp(&(b - mean).norm()))
+}
+
+/// How the pressing pads close onto a plan's [`GraspPlan::support`] (grasp frame, mm): from the
+/// centroid of the pressing pads' skin in the preshape to their centroid in the closed
+/// posture, where they meet the support; its length is the grasp's opening, the thickest part
+/// that fits between them. `None` without a support.
+pub fn press_travel(hand: &dyn PosableHand, plan: &GraspPlan) -> Option<Vec3> {
+    plan.support?;
+    let centroid = |t: f64| {
+        let tr = link_transforms(
+            hand.skeleton(),
+            &pose_at(plan, &[t; 16], grasp_frame(hand).inverse()),
+        );
+        let mut buf = Vec::new();
+        let mut sum = Vec3::zeros();
+        let mut n = 0;
+        for &l in plan.pads.iter().filter(|&&l| Some(l) != plan.support) {
+            hand.pose_link(l.index(), &tr, &mut buf);
+            sum += buf.iter().map(|p| p.coords).sum::<Vec3>();
+            n += buf.len();
+        }
+        sum / n.max(1) as f64
+    };
+    Some(centroid(1.0) - centroid(0.0))
 }
 
 /// A candidate placement: the grasp frame looks along `-dir` at the part from just outside its
@@ -752,6 +808,36 @@ pub fn pad_placement(
     Some(Isometry3::from_parts(
         Translation3::from(centre.coords - entry.rotation * pad),
         entry.rotation,
+    ))
+}
+
+/// A candidate placement of a grasp with a [`GraspPlan::support`]: the grasp frame oriented
+/// as by [`placement`] (looking along `-dir`, rolled by `roll`) and moved so that the plan's
+/// [`pad_point`] `pad` (on the support's skin, grasp frame) lies on the part's surface where a
+/// line through the centre of mass along the pads' closing direction `press` (grasp frame)
+/// leaves it: the part rests on the support, and the thumb closing along `press` pushes it
+/// through its centre of mass onto the support (no torque about the contacts from the squeeze).
+pub fn support_placement(
+    part: &PartShape,
+    dir: &Vec3,
+    roll: f64,
+    pad: &Vec3,
+    press: &Vec3,
+) -> Option<Isometry3<f64>> {
+    use parry3d_f64::query::{Ray, RayCast};
+    let rot = placement(part, dir, roll, 0.0)?.rotation;
+    let d = (rot * press).try_normalize(1e-12)?;
+    // From beyond the part on the far side of the support, back toward it: the first hit is
+    // the face the support touches.
+    let far = part.centre_of_mass + d * (part.max_radius + 50.0);
+    let ray = Ray::new(
+        super::contact::pv(&far),
+        super::contact::pv(&Point::from(-d)),
+    );
+    let hit = far - d * part.shape.cast_local_ray(&ray, f64::MAX, false)?;
+    Some(Isometry3::from_parts(
+        Translation3::from(hit.coords - rot * pad),
+        rot,
     ))
 }
 
@@ -858,9 +944,11 @@ fn skin_sample(hand: &dyn PosableHand, stride: usize) -> (Vec<usize>, Vec<usize>
 /// rolls uniform), screened cheaply, the best few evaluated in full; the result is the best of
 /// the full evaluations by (pads touching, epsilon, volume, contact area).
 ///
-/// A plan without [`GraspPlan::pads`] (power, lateral) is placed with the palm 3 mm off the
-/// part ([`placement`]); a precision plan with its [`pad_point`] in the part
-/// ([`pad_placement`]), its candidates rank first by how many of its pads touch the part, and
+/// A plan without [`GraspPlan::pads`] (power) is placed with the palm 3 mm off the part
+/// ([`placement`]); a precision plan with its [`pad_point`] in the part ([`pad_placement`]); a
+/// plan with a [`GraspPlan::support`] (lateral) with the part resting on the support where the
+/// thumb's closing line through the centre of mass leaves it ([`support_placement`]). Candidates
+/// of a plan with pads rank first by how many of its pads touch the part, and
 /// its epsilon is that of the pads' contacts: a precision grasp is one held by the pads
 /// (Cutkosky 1989), and epsilon of every contact preferred a tripod held by the thenar and one
 /// fingertip, which is force closure but drops the pen.
@@ -915,9 +1003,11 @@ pub fn placement_search(
     // (candidate, pads touching, epsilon, volume, contact area)
     type Score = (usize, usize, f64, f64, f64);
     let pad = pad_point(hand, plan);
-    let approach_of = |i: usize| match &pad {
-        Some(p) => pad_placement(part, &cand[i].0, cand[i].1, p),
-        None => placement(part, &cand[i].0, cand[i].1, 3.0),
+    let press = press_travel(hand, plan);
+    let approach_of = |i: usize| match (&pad, &press) {
+        (Some(p), Some(n)) => support_placement(part, &cand[i].0, cand[i].1, p, n),
+        (Some(p), None) => pad_placement(part, &cand[i].0, cand[i].1, p),
+        (None, _) => placement(part, &cand[i].0, cand[i].1, 3.0),
     };
     let root_of = |i: usize| Some(approach_of(i)? * gf.inverse());
     let score = |i: usize, root, opts: &AutograspOptions, sample: &_, edges, squeezed| {
@@ -1090,6 +1180,76 @@ mod tests {
             }
         }
         assert!(grasp_plan(GraspType::Power).pads.is_empty());
+    }
+
+    /// The lateral plan closes the thumb pad onto the radial side of the still index's middle
+    /// phalanx: 20 mm and more apart in the preshape, meeting in the closed posture, the thumb
+    /// on the index's radial side (toward the index MCP from the middle MCP); its pad point
+    /// lies on that phalanx's skin and the pads close onto it.
+    #[test]
+    fn lateral_thumb_meets_the_index_side() {
+        let h = hand();
+        let plan = grasp_plan(GraspType::Lateral);
+        assert_eq!(plan.pads, vec![Link::TDist, Link::IMid]);
+        assert_eq!(plan.support, Some(Link::IMid));
+        assert!(Finger::Index
+            .joints()
+            .iter()
+            .all(|j| !plan.active[j.index()]));
+        let sk = &h.skeleton;
+        let radial = (sk.centre(Joint::IMcp) - sk.centre(Joint::MMcp)).normalize();
+        let centroid = |l: Link, tr: &[Isometry3<f64>]| {
+            let mut buf = Vec::new();
+            h.pose_link(l.index(), tr, &mut buf);
+            buf.iter().map(|p| p.coords).sum::<Vec3>() / buf.len() as f64
+        };
+        for t in [0.0, 1.0] {
+            let tr = link_transforms(sk, &pose_at(&plan, &[t; 16], Isometry3::identity()));
+            let d = skin_gap(h, Link::TDist, Link::IMid, &tr);
+            if t == 0.0 {
+                assert!(d > 20.0, "preshape: {d} mm");
+            } else {
+                assert!(d < 1.0, "closed: {d} mm");
+                let side = radial.dot(&(centroid(Link::TDist, &tr) - centroid(Link::IMid, &tr)));
+                assert!(side > 5.0, "thumb {side} mm radial of the index");
+            }
+        }
+        // The pad point is a vertex of the support's closed skin, and the thumb closes toward
+        // it (in the grasp frame).
+        let pad = pad_point(h, &plan).unwrap();
+        let tr = link_transforms(sk, &pose_at(&plan, &[1.0; 16], grasp_frame(h).inverse()));
+        let mut buf = Vec::new();
+        h.pose_link(Link::IMid.index(), &tr, &mut buf);
+        assert!(buf.iter().any(|p| (p.coords - pad).norm() < 1e-9));
+        let travel = press_travel(h, &plan).unwrap();
+        assert!(travel.norm() > 20.0, "opens {} mm", travel.norm());
+        let press = travel.normalize();
+        let thumb0 = {
+            let tr = link_transforms(sk, &pose_at(&plan, &[0.0; 16], grasp_frame(h).inverse()));
+            centroid(Link::TDist, &tr)
+        };
+        let to_pad = (pad - thumb0).normalize();
+        assert!(press.dot(&to_pad) > 0.8, "{press} vs {to_pad}");
+    }
+
+    /// A support placement puts the pad point on the part's surface on the line through the
+    /// centre of mass along the closing direction: for the bottle seen from its side, with the
+    /// thumb closing along the grasp frame's x, on its cylindrical wall, 30 mm from its axis.
+    #[test]
+    fn support_placement_rests_the_part_on_the_support() {
+        let part = bottle();
+        let pad = Vec3::new(-20.0, 40.0, 30.0);
+        let a = support_placement(part, &Vec3::x(), 0.7, &pad, &Vec3::x()).unwrap();
+        let at = a * Point::from(pad);
+        let com = part.centre_of_mass;
+        let off = at - com;
+        let press = a.rotation * Vec3::x();
+        // On the far side of the centre of mass along the closing direction, on the line.
+        assert!((off - press * off.dot(&press)).norm() < 1e-6, "{off}");
+        assert!(off.dot(&press) > 0.0);
+        let r = off.x.hypot(off.y);
+        assert!((r - 30.0).abs() < 1.0, "{r} mm from the axis");
+        assert!(part.distance(&at).abs() < 0.1, "{}", part.distance(&at));
     }
 
     /// Seen from the side of the bottle (a solid of revolution about z), the chord through its

@@ -309,9 +309,19 @@ pub fn run_scene(scene: &Scene, hand: &dyn PosableHand, quiet: bool) -> Result<G
                 quiet,
             )
             .ok_or_else(|| {
+                // A key pinch opens only so far: say so when the part cannot fit.
+                let opening = autograsp::press_travel(hand, &plan)
+                    .map(|t| {
+                        format!(
+                            " (a {} grasp opens its thumb pad {:.0} mm from the index's side; a thicker part does not fit)",
+                            scene.grasp.name(),
+                            t.norm()
+                        )
+                    })
+                    .unwrap_or_default();
                 Error::input(
                     &scene.path,
-                    "grasp.approach = \"auto\": no placement closed the hand on the part; give an approach",
+                    format!("grasp.approach = \"auto\": no placement closed the hand on the part{opening}; give an approach"),
                 )
             })?;
             std::iter::once(r.approach).chain(r.runners_up).collect()
@@ -659,6 +669,77 @@ mod tests {
             "{}",
             r.max_penetration_mm
         );
+    }
+
+    /// The report of the shipped scene `scenes/NAME.toml` with its grasp type replaced by
+    /// `grasp` (the part read from `scenes/`).
+    fn shipped_as(name: &str, grasp: &str) -> GraspReport {
+        let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes");
+        let text = std::fs::read_to_string(dir.join(format!("{name}.toml"))).unwrap();
+        let part = dir.join(format!("{name}.stl"));
+        let text: String = text
+            .lines()
+            .map(|l| match l.split('=').next().map(str::trim) {
+                Some("type") => format!("type = \"{grasp}\""),
+                Some("file") => format!("file = {:?}", part.display().to_string()),
+                _ => l.to_string(),
+            })
+            .collect::<Vec<_>>()
+            .join("\n");
+        let tmp = tempfile::tempdir().unwrap();
+        let path = tmp.path().join(format!("{name}.toml"));
+        std::fs::write(&path, text).unwrap();
+        let s = scene::read_scene(&path).unwrap();
+        assert_eq!(s.grasp.name(), grasp);
+        run_scene(&s, hand(), true).unwrap().report
+    }
+
+    /// The pen in a lateral (key) pinch: held between the thumb's distal pad and the radial
+    /// side of the index's middle phalanx, off the palm, force closure, and it holds in rapier
+    /// in all six directions.
+    #[test]
+    fn lateral_grasp_of_the_pen_holds() {
+        let r = &shipped_as("pen", "lateral");
+        let area = |l: &str| r.contact_area_mm2.get(l).copied().unwrap_or(0.0);
+        for pad in ["T_DIST", "I_MID"] {
+            assert!(area(pad) > 0.0, "{pad}: {:?}", r.contact_area_mm2);
+        }
+        let depth = r.squeeze.depth_mm.get("T_DIST").copied().unwrap_or(0.0);
+        assert!(
+            depth > autograsp::SQUEEZE_MM / 2.0,
+            "T_DIST pressed {depth} mm"
+        );
+        assert_eq!(area("PALM"), 0.0, "{:?}", r.contact_area_mm2);
+        assert!(r.warnings.is_empty(), "{:?}", r.warnings);
+        assert!(r.force_closure && r.epsilon > 0.0, "{}", r.epsilon);
+        assert!(r.holds, "{:?}", r.hold_test);
+    }
+
+    /// A part thicker than the lateral grasp's opening (the 38 mm mouse) finds no placement,
+    /// and the one-line error says why, with the opening.
+    #[test]
+    fn lateral_grasp_of_the_mouse_says_it_does_not_fit() {
+        let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes");
+        let tmp = tempfile::tempdir().unwrap();
+        let path = tmp.path().join("m.toml");
+        let text = format!(
+            "[part]\nfile = {:?}\nunits = \"mm\"\nfriction = 0.5\nmass_g = 100\n[grasp]\ntype = \"lateral\"\napproach = \"auto\"\nseed = 1\ncandidates = 100\n",
+            dir.join("mouse.stl").display().to_string()
+        );
+        std::fs::write(&path, text).unwrap();
+        let s = scene::read_scene(&path).unwrap();
+        let e = run_scene(&s, hand(), true).err().unwrap().to_string();
+        let opening = autograsp::press_travel(hand(), &autograsp::grasp_plan(s.grasp))
+            .unwrap()
+            .norm();
+        assert!(opening < 38.0, "{opening}");
+        assert!(
+            e.contains("grasp.approach")
+                && e.contains(&format!("{opening:.0} mm"))
+                && e.contains("does not fit"),
+            "{e}"
+        );
+        assert!(!e.contains('\n'));
     }
 
     /// The shipped pen scene (a 9 mm pen, tripod, placement search) is a real tripod: the pen
