@@ -650,9 +650,15 @@ mod tests {
 
     /// The report of the shipped scene `scenes/NAME.toml` with the default hand.
     fn shipped(name: &str) -> GraspReport {
+        run_scene(&shipped_scene(name), hand(), true)
+            .unwrap()
+            .report
+    }
+
+    /// The shipped scene `scenes/NAME.toml`, read.
+    fn shipped_scene(name: &str) -> Scene {
         let path = Path::new(env!("CARGO_MANIFEST_DIR")).join(format!("scenes/{name}.toml"));
-        let s = scene::read_scene(&path).unwrap();
-        run_scene(&s, hand(), true).unwrap().report
+        scene::read_scene(&path).unwrap()
     }
 
     /// The shipped bottle scene (issue 8's 60 mm bottle in a power grasp) reaches force
@@ -671,35 +677,14 @@ mod tests {
         );
     }
 
-    /// The report of the shipped scene `scenes/NAME.toml` with its grasp type replaced by
-    /// `grasp` (the part read from `scenes/`).
-    fn shipped_as(name: &str, grasp: &str) -> GraspReport {
-        let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes");
-        let text = std::fs::read_to_string(dir.join(format!("{name}.toml"))).unwrap();
-        let part = dir.join(format!("{name}.stl"));
-        let text: String = text
-            .lines()
-            .map(|l| match l.split('=').next().map(str::trim) {
-                Some("type") => format!("type = \"{grasp}\""),
-                Some("file") => format!("file = {:?}", part.display().to_string()),
-                _ => l.to_string(),
-            })
-            .collect::<Vec<_>>()
-            .join("\n");
-        let tmp = tempfile::tempdir().unwrap();
-        let path = tmp.path().join(format!("{name}.toml"));
-        std::fs::write(&path, text).unwrap();
-        let s = scene::read_scene(&path).unwrap();
-        assert_eq!(s.grasp.name(), grasp);
-        run_scene(&s, hand(), true).unwrap().report
-    }
-
     /// The pen in a lateral (key) pinch: held between the thumb's distal pad and the radial
     /// side of the index's middle phalanx, off the palm, force closure, and it holds in rapier
     /// in all six directions.
     #[test]
     fn lateral_grasp_of_the_pen_holds() {
-        let r = &shipped_as("pen", "lateral");
+        let mut s = shipped_scene("pen");
+        s.grasp = scene::GraspType::Lateral;
+        let r = &run_scene(&s, hand(), true).unwrap().report;
         let area = |l: &str| r.contact_area_mm2.get(l).copied().unwrap_or(0.0);
         for pad in ["T_DIST", "I_MID"] {
             assert!(area(pad) > 0.0, "{pad}: {:?}", r.contact_area_mm2);
@@ -719,15 +704,9 @@ mod tests {
     /// and the one-line error says why, with the opening.
     #[test]
     fn lateral_grasp_of_the_mouse_says_it_does_not_fit() {
-        let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes");
-        let tmp = tempfile::tempdir().unwrap();
-        let path = tmp.path().join("m.toml");
-        let text = format!(
-            "[part]\nfile = {:?}\nunits = \"mm\"\nfriction = 0.5\nmass_g = 100\n[grasp]\ntype = \"lateral\"\napproach = \"auto\"\nseed = 1\ncandidates = 100\n",
-            dir.join("mouse.stl").display().to_string()
-        );
-        std::fs::write(&path, text).unwrap();
-        let s = scene::read_scene(&path).unwrap();
+        let mut s = shipped_scene("mouse");
+        s.grasp = scene::GraspType::Lateral;
+        s.candidates = 100;
         let e = run_scene(&s, hand(), true).err().unwrap().to_string();
         let opening = autograsp::press_travel(hand(), &autograsp::grasp_plan(s.grasp))
             .unwrap()
