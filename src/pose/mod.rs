@@ -222,17 +222,21 @@ pub fn pose_command_with(
             Some((rig.tets, posed))
         }
     };
-    // Measured on the skin as written: the resolver's figure holds unless the volume
-    // correction moved the skin since.
-    let depth = |skin: &crate::geometry::TriMesh| {
-        quality::finger_penetration(skin, &hand.weights, ResolveOptions::default().max_depth_mm)
-            .depth_mm
-    };
-    let penetration_mm = match (&baked, resolved_depth_mm) {
-        (Some((_, p)), _) => depth(&p.skin),
-        (None, Some(d)) => d,
-        (None, None) => depth(&hand.posed_skin(&pose, method)),
-    };
+    // Measured on the skin as written: the resolver worked on that very skin (corrected when
+    // the correction is on, else `method`'s), so its figure stands; with the angles kept, it
+    // is measured here.
+    let penetration_mm = resolved_depth_mm.unwrap_or_else(|| {
+        let max_depth = ResolveOptions::default().max_depth_mm;
+        match &baked {
+            Some((_, p)) => quality::finger_penetration(&p.skin, &hand.weights, max_depth),
+            None => quality::finger_penetration(
+                &hand.posed_skin(&pose, method),
+                &hand.weights,
+                max_depth,
+            ),
+        }
+        .depth_mm
+    });
     for w in &warnings {
         log.warn(w);
     }
