@@ -125,6 +125,7 @@ pub fn synth_options(
     preset: &str,
     hand: &str,
     posture: &str,
+    body: &str,
     duration: Option<f64>,
 ) -> Result<SynthOptions> {
     let bad = |opt: &str, e: String| Error::invalid(format!("--{opt}: {e}"));
@@ -135,6 +136,7 @@ pub fn synth_options(
         other => return Err(bad("hand", format!("'{other}' is not right or left"))),
     };
     o.posture = posture.parse().map_err(|e| bad("posture", e))?;
+    o.body = body.parse().map_err(|e| bad("body", e))?;
     o.duration_s = duration;
     Ok(o)
 }
@@ -151,9 +153,10 @@ pub fn synth(opts: &SynthOptions, out: &Path, force: bool, log: &Log) -> Result<
     spinner.finish_and_clear();
     let frames: usize = s.trials.values().map(|t| t.n_frames()).sum();
     log.info(format!(
-        "synth: {} ({} hand, preset {}, posture {:?}) -> {}: {} trials, {} frames, reference surface {} faces, {:.1} s",
+        "synth: {} ({} hand, {} body, preset {}, posture {:?}) -> {}: {} trials, {} frames, reference surface {} faces, {:.1} s",
         s.subject.name,
         opts.hand,
+        opts.body.name(),
         opts.preset.name(),
         opts.posture,
         out.display(),

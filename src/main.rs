@@ -52,6 +52,10 @@ enum Command {
         /// Reference posture: template (the template's own) or varied (issue 10's variation).
         #[arg(long, default_value = "template")]
         posture: String,
+        /// The true hand: template (the template deformed by its own skeleton, which the
+        /// template can always reach) or procedural (an anatomical hand independent of it).
+        #[arg(long, default_value = "template")]
+        body: String,
         /// Length of every calibration trial in seconds (default: drawn from 40-80 s).
         #[arg(long)]
         duration: Option<f64>,
@@ -147,9 +151,10 @@ fn main() -> ExitCode {
             preset,
             hand,
             posture,
+            body,
             duration,
             force,
-        } => cli::synth_options(seed, &preset, &hand, &posture, duration)
+        } => cli::synth_options(seed, &preset, &hand, &posture, &body, duration)
             .and_then(|opts| cli::synth(&opts, &out, force, &log)),
         Command::Reconstruct {
             subject_dir,

@@ -13,6 +13,7 @@ pub mod capture;
 pub mod motion;
 pub mod suite;
 pub mod surface_field;
+pub mod true_hand;
 pub mod voxel_scan;
 
 use crate::anatomy::{landmark_names, palm_markers, Dimension, Finger, Joint, Link, Side};
@@ -22,12 +23,9 @@ use crate::mocap::c3d::write_c3d;
 use crate::mocap::subject::Subject;
 use crate::mocap::trajectories::Trajectories;
 use crate::rng::Rng;
-use crate::skeleton::forward_kinematics::link_transforms;
-use crate::skeleton::forward_kinematics::{linear_blend, posed_skeleton};
 use crate::skeleton::record::{joint_records, JointRecord};
 use crate::skeleton::{Pose, Skeleton};
 use crate::template::{load_template, TemplateHand};
-use anthropometry::{shape_hand, ShapeParams};
 use capture::{plate_markers, simulate_trial, ErrorModel, MarkerDef};
 use motion::{MotionVariation, Trial};
 use nalgebra::{Isometry3, Matrix3, Rotation3, Translation3, UnitQuaternion};
@@ -35,6 +33,7 @@ use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::str::FromStr;
+pub use true_hand::TrueHand;
 
 /// Named sets of error and motion parameters.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
@@ -148,6 +147,41 @@ impl FromStr for Posture {
     }
 }
 
+/// Which true hand a simulated subject has.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Body {
+    /// The template deformed by its own skeleton ([`true_hand::template_body`]): the template can
+    /// always reach it.
+    Template,
+    /// A procedural anatomical hand built from published proportions, independent of the
+    /// template's mesh and skinning.
+    Procedural,
+}
+
+impl Body {
+    /// Both bodies.
+    pub const ALL: [Body; 2] = [Body::Template, Body::Procedural];
+
+    /// The body's name on the command line.
+    pub fn name(self) -> &'static str {
+        match self {
+            Body::Template => "template",
+            Body::Procedural => "procedural",
+        }
+    }
+}
+
+impl FromStr for Body {
+    type Err = String;
+    fn from_str(s: &str) -> std::result::Result<Self, String> {
+        Body::ALL
+            .into_iter()
+            .find(|b| b.name() == s)
+            .ok_or_else(|| format!("unknown body '{s}' (expected template or procedural)"))
+    }
+}
+
 /// Everything that defines a simulated subject.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -162,6 +196,9 @@ pub struct SynthOptions {
     /// Reference posture.
     #[serde(default = "default_posture")]
     pub posture: Posture,
+    /// The true hand's body.
+    #[serde(default = "default_body")]
+    pub body: Body,
     /// Length of every calibration trial, s; `None` draws 40-80 s per trial.
     #[serde(default)]
     pub duration_s: Option<f64>,
@@ -196,6 +233,9 @@ fn default_side() -> Side {
 fn default_posture() -> Posture {
     Posture::Template
 }
+fn default_body() -> Body {
+    Body::Template
+}
 fn default_voxel() -> f64 {
     0.5
 }
@@ -211,6 +251,7 @@ impl SynthOptions {
             preset,
             hand: Side::Right,
             posture: Posture::Template,
+            body: Body::Template,
             duration_s: None,
             voxel_mm: default_voxel(),
             marker_offset_mm: default_offset(),
@@ -251,8 +292,11 @@ pub struct SyntheticSubject {
     pub trials: BTreeMap<String, Trajectories>,
     /// Ground truth.
     pub truth: Truth,
-    /// The true skin in the reference posture, lab frame (homologous to the template).
+    /// The true skin in the reference posture, lab frame (homologous to the template for the
+    /// template body only: see `skin_homologous`).
     pub true_skin: TriMesh,
+    /// `true_skin` has the template's vertices and faces (written as `truth_skin.ply`).
+    pub skin_homologous: bool,
     /// The true skeleton in the reference posture, lab frame.
     pub true_skeleton: Skeleton,
     /// Marker definitions per trial key (for exactness tests).
@@ -314,39 +358,29 @@ pub fn simulate(opts: &SynthOptions) -> Result<SyntheticSubject> {
     let template: TemplateHand = load_template(opts.hand)?;
     let err = opts.preset.error_model();
 
-    // 1. The true hand in the template's posture: shape, then the surface field.
-    let shape = ShapeParams::sample(&mut root.fork("shape"), 1.0);
-    let shaped = shape_hand(
-        &template.mesh,
-        &template.weights,
-        &template.skeleton,
-        &shape,
-    );
-    let mut skin = shaped.mesh;
-    let mut field_rng = root.fork("field");
-    let field = surface_field::FieldParams {
-        amplitude_mm: field_rng.range(0.5, 2.0),
-        ..Default::default()
-    };
-    surface_field::displace_along_normals(&mut skin, &field, &mut field_rng);
-
-    // 2. The reference posture, by the template's skin weights on the subject's skeleton.
+    // 1. The true hand in its reference posture.
     let posture = draw_posture(&mut root.fork("posture"), opts.posture);
-    let tf = link_transforms(&shaped.skeleton, &posture);
-    skin.vertices = linear_blend(&skin.vertices, &template.weights, &tf);
-    let sk_ref = posed_skeleton(&shaped.skeleton, &tf);
+    let body = match opts.body {
+        Body::Template => true_hand::template_body(&template, &root, posture)?,
+        Body::Procedural => {
+            return Err(Error::invalid(
+                "the procedural body is not available yet".to_string(),
+            ))
+        }
+    };
 
-    // 3. Into the lab frame.
+    // 2. Into the lab frame.
     let mut lab_rng = root.fork("lab");
     let yaw =
         UnitQuaternion::from_axis_angle(&Vec3::z_axis(), lab_rng.range(-10f64, 10.0).to_radians());
-    let rot = yaw * UnitQuaternion::from_rotation_matrix(&template_to_lab_rotation(&sk_ref));
-    let centre = sk_ref.centre(Joint::Wrist).coords;
+    let rot = yaw * UnitQuaternion::from_rotation_matrix(&template_to_lab_rotation(&body.skeleton));
+    let centre = body.skeleton.centre(Joint::Wrist).coords;
     let offset = Vec3::new(250.0, 150.0, 100.0) + lab_rng.gauss3(20.0);
     let to_lab = Isometry3::from_parts(Translation3::from(offset - rot * centre), rot);
-    let true_skin = skin.transformed(&to_lab);
-    let lab_tf = vec![to_lab; Link::ALL.len()];
-    let true_skeleton = posed_skeleton(&sk_ref, &lab_tf);
+    let hand = body.transformed(&to_lab);
+    let true_skin = hand.skin.clone();
+    let true_skeleton = hand.skeleton.clone();
+    let posture = hand.posture.clone();
 
     // 4. Truth: joints, error-free dimensions by the template spec's vertex pairs.
     let mut dimensions = BTreeMap::new();
@@ -379,10 +413,9 @@ pub fn simulate(opts: &SynthOptions) -> Result<SyntheticSubject> {
 
     // 5. Markers, in the reference posture (lab frame): landmarks on the skin at the marker
     // offset along the normal; plates on the links of each finger; forearm markers.
-    let normals = true_skin.vertex_normals();
     let landmark_at = |name: &str| -> Point {
-        let v = template.spec.landmark(name).expect("spec checked on load");
-        true_skin.vertices[v] + normals[v] * opts.marker_offset_mm
+        let (p, n) = hand.landmarks[name];
+        p + n * opts.marker_offset_mm
     };
     let mut sta_rng = root.fork("sta");
     let palm_defs: Vec<MarkerDef> = palm_markers()
@@ -560,6 +593,7 @@ pub fn simulate(opts: &SynthOptions) -> Result<SyntheticSubject> {
         trials,
         truth,
         true_skin,
+        skin_homologous: hand.homologous_to_template,
         true_skeleton,
         markers,
         reference,
@@ -567,8 +601,8 @@ pub fn simulate(opts: &SynthOptions) -> Result<SyntheticSubject> {
 }
 
 /// Write a simulated subject folder at `dir`: `subject.toml`, `trials/*.c3d`, `reference.ply`,
-/// `truth.json` and (an extension of the spec) `truth_skin.ply`, the true skin homologous to the
-/// template. Everything is written into a temporary sibling folder that replaces `dir` only when
+/// `truth.json` and (an extension of the spec, template body only) `truth_skin.ply`, the true
+/// skin homologous to the template. Everything is written into a temporary sibling folder that replaces `dir` only when
 /// complete. A non-empty `dir` is an error unless `force`.
 pub fn write_subject(dir: &Path, s: &SyntheticSubject, force: bool) -> Result<()> {
     if dir.exists() {
@@ -621,12 +655,14 @@ fn write_into(tmp: &Path, s: &SyntheticSubject) -> Result<()> {
         crate::io::Units::Millimetres,
         None,
     )?;
-    crate::io::ply::write_ply(
-        &tmp.join("truth_skin.ply"),
-        &s.true_skin,
-        crate::io::Units::Millimetres,
-        None,
-    )?;
+    if s.skin_homologous {
+        crate::io::ply::write_ply(
+            &tmp.join("truth_skin.ply"),
+            &s.true_skin,
+            crate::io::Units::Millimetres,
+            None,
+        )?;
+    }
     let json = serde_json::to_string_pretty(&s.truth).expect("truth serialises");
     crate::io::atomic::write_bytes_atomic(&tmp.join("truth.json"), json.as_bytes())
 }

@@ -1,6 +1,6 @@
 //! The validation suite's list of simulated subjects (`validation/suite.toml`).
 
-use super::{Posture, Preset, SynthOptions};
+use super::{Body, Posture, Preset, SynthOptions};
 use crate::anatomy::Side;
 use crate::error::{Error, Result};
 use serde::Deserialize;
@@ -22,6 +22,9 @@ struct SuiteEntry {
     hand: Option<Side>,
     #[serde(default)]
     posture: Option<Posture>,
+    /// The true hand's body (default template).
+    #[serde(default)]
+    body: Option<Body>,
     #[serde(default)]
     duration_s: Option<f64>,
     #[serde(default)]
@@ -53,6 +56,7 @@ pub fn parse_suite(text: &str, path: &Path) -> Result<Vec<(String, SynthOptions)
         let mut o = SynthOptions::new(e.seed, e.preset);
         o.hand = e.hand.unwrap_or(o.hand);
         o.posture = e.posture.unwrap_or(o.posture);
+        o.body = e.body.unwrap_or(o.body);
         o.duration_s = e.duration_s;
         o.voxel_mm = e.voxel_mm.unwrap_or(o.voxel_mm);
         o.marker_offset_mm = e.marker_offset_mm.unwrap_or(o.marker_offset_mm);
