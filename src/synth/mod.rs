@@ -11,6 +11,7 @@
 pub mod anthropometry;
 pub mod capture;
 pub mod motion;
+pub mod stamp;
 pub mod suite;
 pub mod surface_field;
 pub mod true_hand;

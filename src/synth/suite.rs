@@ -34,20 +34,43 @@ struct SuiteEntry {
     /// Capture session of the same hand (repeatability studies; default 0).
     #[serde(default)]
     repeat: Option<u32>,
+    /// Kept out of every choice of method or default: only scored (default false).
+    #[serde(default)]
+    held_out: bool,
+}
+
+/// One subject of a suite file.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SuiteSubject {
+    /// Its unique name (the folder under `subjects/`).
+    pub name: String,
+    /// How it is simulated.
+    pub opts: SynthOptions,
+    /// Held out of tuning: no method, parameter or default may be chosen by looking at its
+    /// figures; it is only scored, so that the suite keeps an honest estimate.
+    pub held_out: bool,
 }
 
 /// Read a suite file: `(name, options)` per subject, in file order; names must be unique.
 pub fn read_suite(path: &Path) -> Result<Vec<(String, SynthOptions)>> {
+    Ok(read_suite_subjects(path)?
+        .into_iter()
+        .map(|s| (s.name, s.opts))
+        .collect())
+}
+
+/// Read a suite file with every subject's flags, in file order.
+pub fn read_suite_subjects(path: &Path) -> Result<Vec<SuiteSubject>> {
     let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
     parse_suite(&text, path)
 }
 
 /// Parse a suite file's text (errors name `path`, the key and the line).
-pub fn parse_suite(text: &str, path: &Path) -> Result<Vec<(String, SynthOptions)>> {
+pub fn parse_suite(text: &str, path: &Path) -> Result<Vec<SuiteSubject>> {
     let file: SuiteFile = toml::from_str(text).map_err(|e| Error::toml(path, text, &e))?;
-    let mut out: Vec<(String, SynthOptions)> = Vec::new();
+    let mut out: Vec<SuiteSubject> = Vec::new();
     for e in file.subject {
-        if out.iter().any(|(n, _)| *n == e.name) {
+        if out.iter().any(|s| s.name == e.name) {
             return Err(Error::input(
                 path,
                 format!("subject name '{}' is used twice", e.name),
@@ -61,7 +84,11 @@ pub fn parse_suite(text: &str, path: &Path) -> Result<Vec<(String, SynthOptions)
         o.voxel_mm = e.voxel_mm.unwrap_or(o.voxel_mm);
         o.marker_offset_mm = e.marker_offset_mm.unwrap_or(o.marker_offset_mm);
         o.repeat = e.repeat.unwrap_or(o.repeat);
-        out.push((e.name, o));
+        out.push(SuiteSubject {
+            name: e.name,
+            opts: o,
+            held_out: e.held_out,
+        });
     }
     Ok(out)
 }
@@ -70,18 +97,31 @@ pub fn parse_suite(text: &str, path: &Path) -> Result<Vec<(String, SynthOptions)
 mod tests {
     use super::*;
 
+    /// Both bodies are covered alike: every preset, both hands and the varied posture, and
+    /// each body keeps subjects held out of tuning.
     #[test]
-    fn shipped_suite_covers_presets_and_hands() {
+    fn shipped_suite_covers_presets_hands_and_bodies() {
         let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("validation/suite.toml");
-        let suite = read_suite(&path).unwrap();
-        assert!(suite.len() >= 8);
-        for p in Preset::ALL {
-            assert!(suite.iter().any(|(_, o)| o.preset == p), "{p:?}");
+        let suite = read_suite_subjects(&path).unwrap();
+        assert!(suite.len() >= 16);
+        for b in Body::ALL {
+            let of: Vec<&SuiteSubject> = suite.iter().filter(|s| s.opts.body == b).collect();
+            for p in Preset::ALL {
+                assert!(of.iter().any(|s| s.opts.preset == p), "{b:?} {p:?}");
+            }
+            for h in [Side::Right, Side::Left] {
+                assert!(of.iter().any(|s| s.opts.hand == h), "{b:?} {h}");
+            }
+            assert!(
+                of.iter().any(|s| s.opts.posture == Posture::Varied),
+                "{b:?}"
+            );
+            assert!(of.iter().any(|s| s.held_out), "{b:?} holds nothing out");
+            assert!(
+                of.iter().any(|s| !s.held_out),
+                "{b:?} keeps nothing to tune on"
+            );
         }
-        for h in [Side::Right, Side::Left] {
-            assert!(suite.iter().any(|(_, o)| o.hand == h), "{h}");
-        }
-        assert!(suite.iter().any(|(_, o)| o.posture == Posture::Varied));
     }
 
     #[test]

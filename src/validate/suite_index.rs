@@ -15,6 +15,8 @@ pub struct SuiteRow<'a> {
     pub name: String,
     /// How it was simulated.
     pub opts: SynthOptions,
+    /// Held out of tuning (only scored).
+    pub held_out: bool,
     /// What `validate` measured.
     pub validation: &'a SubjectValidation,
     /// Its `report.html`.
@@ -125,57 +127,67 @@ fn f2(x: f64) -> String {
 /// The index page; `dir` is where it is written (links are relative to it).
 pub fn suite_index_html(rows: &[SuiteRow], dir: &Path) -> String {
     let mut b = String::new();
-    // Summary cards over the whole suite.
-    let n = rows.len().max(1) as f64;
-    let mean_of = |f: &dyn Fn(&SubjectValidation) -> f64| {
-        rows.iter().map(|r| f(r.validation)).sum::<f64>() / n
-    };
-    let max_of = |f: &dyn Fn(&SubjectValidation) -> f64| {
-        rows.iter().map(|r| f(r.validation)).fold(0.0, f64::max)
-    };
-    let cards = [
-        (
-            "subjects",
-            rows.len().to_string(),
-            "simulated hands with ground truth".to_string(),
+    // Summary cards, one set per body: the bodies are never pooled.
+    let mut cards = vec![(
+        "subjects".to_string(),
+        rows.len().to_string(),
+        format!(
+            "simulated hands with ground truth, {} held out of tuning",
+            rows.iter().filter(|r| r.held_out).count()
         ),
-        (
-            "skin → reference",
+    )];
+    for body in crate::synth::Body::ALL {
+        let g: Vec<&SuiteRow> = rows.iter().filter(|r| r.opts.body == body).collect();
+        if g.is_empty() {
+            continue;
+        }
+        let n = g.len() as f64;
+        let mean_of = |f: &dyn Fn(&SubjectValidation) -> f64| {
+            g.iter().map(|r| f(r.validation)).sum::<f64>() / n
+        };
+        let max_of = |f: &dyn Fn(&SubjectValidation) -> f64| {
+            g.iter().map(|r| f(r.validation)).fold(0.0, f64::max)
+        };
+        let bn = body.name();
+        cards.push((
+            format!("skin → reference · {bn} body"),
             format!("{:.2} mm", mean_of(&|v| surf(v).0)),
             format!(
-                "mean of the means; worst max {:.2} mm",
+                "mean of the {} subjects' means; worst max {:.2} mm",
+                g.len(),
                 max_of(&|v| surf(v).1)
             ),
-        ),
-        (
-            "3-DOF centres",
-            format!("{:.2} mm", mean_of(&|v| link_medians(v).0)),
-            "mean of the subjects' medians".into(),
-        ),
-        (
-            "1-DOF centres",
-            format!("{:.2} mm", mean_of(&|v| link_medians(v).1)),
-            "mean of the subjects' medians".into(),
-        ),
-        (
-            "hinge axes",
-            format!("{:.2}°", mean_of(&|v| link_medians(v).2)),
-            "mean of the subjects' medians".into(),
-        ),
-        (
-            "reconstruct",
+        ));
+        cards.push((
+            format!("centres 3-DOF / 1-DOF · {bn} body"),
             format!(
-                "{:.1} s",
-                mean_of(&|v| v.reconstruct_timings_s.values().sum::<f64>())
+                "{:.2} / {:.2} mm",
+                mean_of(&|v| link_medians(v).0),
+                mean_of(&|v| link_medians(v).1)
             ),
-            "mean time per subject".into(),
+            format!(
+                "mean of the subjects' medians; axes {:.2}°",
+                mean_of(&|v| link_medians(v).2)
+            ),
+        ));
+    }
+    let n = rows.len().max(1) as f64;
+    cards.push((
+        "reconstruct".to_string(),
+        format!(
+            "{:.1} s",
+            rows.iter()
+                .map(|r| r.validation.reconstruct_timings_s.values().sum::<f64>())
+                .sum::<f64>()
+                / n
         ),
-    ];
+        "mean time per subject".into(),
+    ));
     b.push_str("<div class=\"cards\">");
     for (l, v, note) in cards {
         b.push_str(&format!(
             "<div class=\"card\"><div class=\"l\">{}</div><div class=\"v\">{}</div><div class=\"n\">{}</div></div>",
-            esc(l),
+            esc(&l),
             esc(&v),
             esc(&note)
         ));
@@ -191,10 +203,12 @@ pub fn suite_index_html(rows: &[SuiteRow], dir: &Path) -> String {
         let rec: f64 = v.reconstruct_timings_s.values().sum();
         let val: f64 = v.validate_timings_s.iter().map(|x| x.1).sum();
         b.push_str(&format!(
-            "<tr><td><a href=\"{}\"><b>{}</b></a><br><span class=\"n\">{} · {} hand · {} posture{}</span></td><td>{}</td><td class=\"num\">{}</td><td class=\"num\">{} / {}</td><td class=\"num\">{} / {}</td><td class=\"num\">{} / {}</td><td class=\"num\">{}</td><td class=\"num\">{} ± {:.3}</td><td class=\"num\">{:.1} / {:.1}</td></tr>\n",
+            "<tr><td><a href=\"{}\"><b>{}</b></a><br><span class=\"n\">{} body · {}{} · {} hand · {} posture{}</span></td><td>{}</td><td class=\"num\">{}</td><td class=\"num\">{} / {}</td><td class=\"num\">{} / {}</td><td class=\"num\">{} / {}</td><td class=\"num\">{}</td><td class=\"num\">{} ± {:.3}</td><td class=\"num\">{:.1} / {:.1}</td></tr>\n",
             esc(&link),
             esc(&r.name),
+            r.opts.body.name(),
             r.opts.preset.name(),
+            if r.held_out { " · held out" } else { "" },
             r.opts.hand,
             format!("{:?}", r.opts.posture).to_lowercase(),
             if r.opts.repeat > 0 { format!(" · session {}", r.opts.repeat + 1) } else { String::new() },
@@ -223,16 +237,18 @@ pub fn suite_index_html(rows: &[SuiteRow], dir: &Path) -> String {
     }
     b.push_str("</tbody></table></div></section>\n");
 
-    // Per preset.
-    let mut presets: Vec<&str> = Vec::new();
+    // Per body and preset: the template body can always be reached by the template, the
+    // procedural one cannot, so their figures are never pooled.
+    let mut groups: Vec<(&str, &str)> = Vec::new();
     for r in rows {
-        if !presets.contains(&r.opts.preset.name()) {
-            presets.push(r.opts.preset.name());
+        let key = (r.opts.body.name(), r.opts.preset.name());
+        if !groups.contains(&key) {
+            groups.push(key);
         }
     }
     let mut t = Table {
         head: [
-            "preset",
+            "body · preset",
             "subjects",
             "skin → ref. mean (mm)",
             "skin → ref. max (mm)",
@@ -246,7 +262,7 @@ pub fn suite_index_html(rows: &[SuiteRow], dir: &Path) -> String {
         rows: Vec::new(),
         numeric: vec![false, true, true, true, true, true, true],
         summary_rows: 1,
-        note: "Means over the preset's subjects of each subject's mean (surface) or median (joints); max is the largest of the subjects' maxima. The seed paper: 1.63 mm mean, 15.13 mm max on a real hand.".into(),
+        note: "Means over the group's subjects of each subject's mean (surface) or median (joints); max is the largest of the subjects' maxima. The template body is the template deformed by its own skeleton (the template can always reach it); the procedural body is independent of it. The seed paper: 1.63 mm mean, 15.13 mm max on a real hand.".into(),
     };
     let group_row = |label: &str, g: &[&SuiteRow]| -> Vec<Cell> {
         let k = g.len().max(1) as f64;
@@ -284,13 +300,25 @@ pub fn suite_index_html(rows: &[SuiteRow], dir: &Path) -> String {
             },
         ]
     };
-    for p in &presets {
-        let g: Vec<&SuiteRow> = rows.iter().filter(|r| r.opts.preset.name() == *p).collect();
-        t.rows.push(group_row(p, &g));
+    for (body, preset) in &groups {
+        let g: Vec<&SuiteRow> = rows
+            .iter()
+            .filter(|r| r.opts.body.name() == *body && r.opts.preset.name() == *preset)
+            .collect();
+        t.rows.push(group_row(&format!("{body} · {preset}"), &g));
     }
-    let all: Vec<&SuiteRow> = rows.iter().collect();
-    t.rows.push(group_row("all", &all));
-    b.push_str("<section id=\"summary\"><h2>Summary per preset</h2>");
+    for body in crate::synth::Body::ALL {
+        let g: Vec<&SuiteRow> = rows.iter().filter(|r| r.opts.body == body).collect();
+        if !g.is_empty() {
+            t.rows
+                .push(group_row(&format!("{} · all", body.name()), &g));
+        }
+    }
+    t.summary_rows = crate::synth::Body::ALL
+        .iter()
+        .filter(|b| rows.iter().any(|r| r.opts.body == **b))
+        .count();
+    b.push_str("<section id=\"summary\"><h2>Summary per body and preset</h2>");
     b.push_str(&table_html(&t));
     b.push_str("</section>\n");
 
