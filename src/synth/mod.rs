@@ -11,6 +11,7 @@
 pub mod anthropometry;
 pub mod capture;
 pub mod motion;
+pub mod procedural;
 pub mod stamp;
 pub mod suite;
 pub mod surface_field;
@@ -340,6 +341,62 @@ fn draw_posture(rng: &mut Rng, posture: Posture) -> Pose {
     pose
 }
 
+/// The 22 caliper dimensions of a true hand that is not homologous to the template, from its
+/// skin, skeleton and landmark points: the lateral pairs between the landmarks `WRIST_RAD` /
+/// `WRIST_ULN` and `I_MCP_LAT` / `L_MCP_LAT`, every other one as the chord of the skin through the
+/// joint centre along the joint's x (breadths) or y (thickness) axis (rays both ways from the
+/// centre; for the hand thickness at the 3rd metacarpal head, along the palm's dorsal axis).
+///
+/// A stand-in: replaced by `crate::measure::caliper::measure_dimensions` (sections at the joints)
+/// when that module is merged.
+fn section_dimensions(
+    skin: &TriMesh,
+    sk: &Skeleton,
+    landmarks: &BTreeMap<String, (Point, Vec3)>,
+) -> Result<BTreeMap<Dimension, f64>> {
+    let tree = crate::geometry::closest_point::AabbTree::new(skin);
+    let chord = |d: Dimension, c: Point, dir: Vec3| -> Result<f64> {
+        let hit = |s: f64| {
+            tree.ray_cast(&c, &(dir * s), 0.0, 150.0)
+                .map(|h| h.t)
+                .ok_or_else(|| Error::invalid(format!("true hand: no skin across {}", d.name())))
+        };
+        Ok(hit(1.0)? + hit(-1.0)?)
+    };
+    let between = |a: &str, b: &str| -> Result<f64> {
+        match (landmarks.get(a), landmarks.get(b)) {
+            (Some(p), Some(q)) => Ok((p.0 - q.0).norm()),
+            _ => Err(Error::invalid(format!(
+                "true hand has no landmark {a} or {b}"
+            ))),
+        }
+    };
+    let mut out = BTreeMap::new();
+    for d in Dimension::all() {
+        let v = match d {
+            Dimension::WristBreadth => between("WRIST_RAD", "WRIST_ULN")?,
+            Dimension::HandBreadthDiagonal => between("I_MCP_LAT", "L_MCP_LAT")?,
+            Dimension::WristThickness => {
+                let w = sk.joint(Joint::Wrist);
+                chord(d, w.centre, w.y())?
+            }
+            Dimension::HandThicknessMc3 => {
+                chord(d, sk.centre(Joint::MMcp), sk.joint(Joint::Wrist).y())?
+            }
+            Dimension::BreadthProximal(f) | Dimension::BreadthDistal(f) => {
+                let j = crate::template::landmark_rule::dimension_joint(d, f);
+                chord(d, sk.centre(j), sk.joint(j).x())?
+            }
+            Dimension::ThicknessProximal(f) | Dimension::ThicknessDistal(f) => {
+                let j = crate::template::landmark_rule::dimension_joint(d, f);
+                chord(d, sk.centre(j), sk.joint(j).y())?
+            }
+        };
+        out.insert(d, v);
+    }
+    Ok(out)
+}
+
 /// Simulate a subject.
 pub fn simulate(opts: &SynthOptions) -> Result<SyntheticSubject> {
     if !(0.05..=2.0).contains(&opts.voxel_mm) {
@@ -363,11 +420,7 @@ pub fn simulate(opts: &SynthOptions) -> Result<SyntheticSubject> {
     let posture = draw_posture(&mut root.fork("posture"), opts.posture);
     let body = match opts.body {
         Body::Template => true_hand::template_body(&template, &root, posture)?,
-        Body::Procedural => {
-            return Err(Error::invalid(
-                "the procedural body is not available yet".to_string(),
-            ))
-        }
+        Body::Procedural => procedural::procedural_body(opts.hand, &root, posture)?,
     };
 
     // 2. Into the lab frame.
@@ -383,13 +436,28 @@ pub fn simulate(opts: &SynthOptions) -> Result<SyntheticSubject> {
     let true_skeleton = hand.skeleton.clone();
     let posture = hand.posture.clone();
 
-    // 4. Truth: joints, error-free dimensions by the template spec's vertex pairs.
+    // 4. Truth: joints, error-free dimensions by the template spec's vertex pairs (a body
+    // homologous to the template) or by sections of the skin at the joints.
+    let sections = if hand.homologous_to_template {
+        None
+    } else {
+        Some(section_dimensions(
+            &true_skin,
+            &true_skeleton,
+            &hand.landmarks,
+        )?)
+    };
     let mut dimensions = BTreeMap::new();
     let mut measured = BTreeMap::new();
     let mut cal_rng = root.fork("caliper");
     for d in Dimension::all() {
-        let [a, b] = template.spec.dimension(d).expect("spec checked on load");
-        let v = (true_skin.vertices[a] - true_skin.vertices[b]).norm();
+        let v = match &sections {
+            Some(s) => s[&d],
+            None => {
+                let [a, b] = template.spec.dimension(d).expect("spec checked on load");
+                (true_skin.vertices[a] - true_skin.vertices[b]).norm()
+            }
+        };
         dimensions.insert(d.name(), v);
         // Digital calipers read to 0.01 mm.
         let m = v + cal_rng.normal() * opts.preset.caliper_sd_mm();
@@ -808,6 +876,49 @@ mod tests {
         let e = write_subject(&a, &simulate(&opts).unwrap(), false).unwrap_err();
         assert!(e.to_string().contains("--force"), "{e}");
         write_subject(&a, &simulate(&opts).unwrap(), true).unwrap();
+    }
+
+    #[test]
+    fn a_procedural_subject_is_byte_identical_for_a_seed_and_measured_from_its_skin() {
+        let dir = tempfile::tempdir().unwrap();
+        let opts = SynthOptions {
+            body: Body::Procedural,
+            hand: Side::Left,
+            posture: Posture::Varied,
+            ..short(31, Preset::Typical)
+        };
+        let (a, b) = (dir.path().join("a"), dir.path().join("b"));
+        let s = simulate(&opts).unwrap();
+        write_subject(&a, &s, false).unwrap();
+        write_subject(&b, &simulate(&opts).unwrap(), false).unwrap();
+        let files = walk(&a);
+        assert!(files.len() >= 10, "{files:?}");
+        for f in &files {
+            let rel = f.strip_prefix(&a).unwrap();
+            assert!(
+                std::fs::read(f).unwrap() == std::fs::read(b.join(rel)).unwrap(),
+                "{} differs",
+                rel.display()
+            );
+        }
+        // Not homologous to the template: no truth_skin.ply.
+        assert!(!s.skin_homologous && !a.join("truth_skin.ply").exists());
+        s.reference.check_closed_manifold().unwrap();
+        let (vr, vt) = (s.reference.signed_volume(), s.true_skin.signed_volume());
+        assert!((vr / vt - 1.0).abs() < 0.01, "{vr} vs {vt}");
+        // Every dimension is a hand's, finger breadths exceed thicknesses at the same joint.
+        for d in Dimension::all() {
+            let v = s.truth.dimensions[&d.name()];
+            let (lo, hi) = d.plausible_range_mm();
+            assert!((lo..=hi).contains(&v), "{d}: {v}");
+        }
+        for f in Finger::ALL {
+            let get = |d: Dimension| s.truth.dimensions[&d.name()];
+            assert!(
+                get(Dimension::BreadthProximal(f)) > get(Dimension::ThicknessProximal(f)),
+                "{f:?}"
+            );
+        }
     }
 
     fn walk(dir: &Path) -> Vec<PathBuf> {
