@@ -275,7 +275,8 @@ pub struct Truth {
     pub frame: String,
     /// True joint centres and axes in that frame.
     pub joints: BTreeMap<String, JointRecord>,
-    /// Error-free values of the 22 dimensions, mm.
+    /// Error-free values of the 22 dimensions, mm: the calipers by their definitions
+    /// ([`crate::measure::caliper`]) on the true skin.
     pub dimensions: BTreeMap<String, f64>,
     /// The reference posture relative to the template's, degrees per joint.
     pub reference_posture_deg: BTreeMap<String, [f64; 3]>,
@@ -382,13 +383,22 @@ pub fn simulate(opts: &SynthOptions) -> Result<SyntheticSubject> {
     let true_skeleton = hand.skeleton.clone();
     let posture = hand.posture.clone();
 
-    // 4. Truth: joints, error-free dimensions by the template spec's vertex pairs.
+    // 4. Truth: joints, and the error-free dimensions: the calipers' definitions applied to the
+    // true skin with the true skeleton and the true landmark points.
+    let landmark_points: BTreeMap<String, Point> = hand
+        .landmarks
+        .iter()
+        .map(|(k, (p, _))| (k.clone(), *p))
+        .collect();
+    let by_definition =
+        crate::measure::measure_dimensions(&true_skin, &true_skeleton, &landmark_points);
     let mut dimensions = BTreeMap::new();
     let mut measured = BTreeMap::new();
     let mut cal_rng = root.fork("caliper");
     for d in Dimension::all() {
-        let [a, b] = template.spec.dimension(d).expect("spec checked on load");
-        let v = (true_skin.vertices[a] - true_skin.vertices[b]).norm();
+        let v = by_definition[&d]
+            .clone()
+            .map_err(|e| Error::invalid(format!("the true hand's {d} cannot be measured: {e}")))?;
         dimensions.insert(d.name(), v);
         // Digital calipers read to 0.01 mm.
         let m = v + cal_rng.normal() * opts.preset.caliper_sd_mm();
