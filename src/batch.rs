@@ -86,8 +86,8 @@ impl Status {
 pub struct KeyFigures {
     /// Largest landmark residual of the skin fit, mm.
     pub landmark_residual_max_mm: Option<f64>,
-    /// Largest |caliper residual| of the skin fit, mm.
-    pub dimension_residual_max_mm: Option<f64>,
+    /// Largest |caliper pair residual| of the skin fit (its template vertex pairs), mm.
+    pub caliper_pair_residual_max_mm: Option<f64>,
     /// Skin faces turned over by the fit.
     pub inverted_faces: Option<u64>,
     /// Inverted tetrahedra of the subject's mesh.
@@ -112,7 +112,7 @@ impl KeyFigures {
         };
         Some(KeyFigures {
             landmark_residual_max_mm: max_abs(&v["skin"]["landmark_residuals_mm"]),
-            dimension_residual_max_mm: max_abs(&v["skin"]["dimension_residuals_mm"]),
+            caliper_pair_residual_max_mm: max_abs(&v["skin"]["caliper_pair_residuals_mm"]),
             inverted_faces: v["skin"]["inverted_faces"].as_u64(),
             inverted_tets: v["tet"]["inverted"].as_u64(),
             min_dihedral_deg: v["tet"]["subject_quality"]["min_dihedral_deg"]["min"].as_f64(),
@@ -181,7 +181,7 @@ impl BatchSummary {
             self.jobs,
             self.seconds
         );
-        md.push_str("| subject | status | time (s) | landmark residual max (mm) | dimension residual max (mm) | inverted skin faces | inverted tets | min dihedral (deg) | warnings | error |\n|---|---|---|---|---|---|---|---|---|---|\n");
+        md.push_str("| subject | status | time (s) | landmark residual max (mm) | caliper pair residual max (mm) | inverted skin faces | inverted tets | min dihedral (deg) | warnings | error |\n|---|---|---|---|---|---|---|---|---|---|\n");
         for s in &self.subjects {
             let k = s.figures.clone().unwrap_or_default();
             let time = if s.status == Status::SkippedUpToDate {
@@ -195,7 +195,7 @@ impl BatchSummary {
                 s.status.word(),
                 time,
                 f(k.landmark_residual_max_mm, 3),
-                f(k.dimension_residual_max_mm, 3),
+                f(k.caliper_pair_residual_max_mm, 3),
                 n(k.inverted_faces),
                 n(k.inverted_tets),
                 f(k.min_dihedral_deg, 1),
@@ -538,13 +538,13 @@ mod tests {
         std::fs::write(
             &p,
             r#"{"warnings": ["a", "b"], "skin": {"landmark_residuals_mm": {"X": 0.02, "Y": 0.4},
-               "dimension_residuals_mm": {"A": -0.3, "B": 0.1}, "inverted_faces": 0},
+               "caliper_pair_residuals_mm": {"A": -0.3, "B": 0.1}, "inverted_faces": 0},
                "tet": {"inverted": 1, "subject_quality": {"min_dihedral_deg": {"min": 5.5}}}}"#,
         )
         .unwrap();
         let k = KeyFigures::read(&p).unwrap();
         assert_eq!(k.landmark_residual_max_mm, Some(0.4));
-        assert_eq!(k.dimension_residual_max_mm, Some(0.3));
+        assert_eq!(k.caliper_pair_residual_max_mm, Some(0.3));
         assert_eq!(k.inverted_faces, Some(0));
         assert_eq!(k.inverted_tets, Some(1));
         assert_eq!(k.min_dihedral_deg, Some(5.5));

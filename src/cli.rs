@@ -194,7 +194,9 @@ struct SkinSummary {
     posture_deg: Option<std::collections::BTreeMap<String, [f64; 3]>>,
     posture_direction_residual_deg: Option<std::collections::BTreeMap<String, f64>>,
     landmark_residuals_mm: std::collections::BTreeMap<String, f64>,
-    dimension_residuals_mm: std::collections::BTreeMap<String, f64>,
+    /// The fit's caliper constraints: distance of each dimension's template vertex pair minus
+    /// the given value, mm. Not the dimensions by their definitions (`validate` measures those).
+    caliper_pair_residuals_mm: std::collections::BTreeMap<String, f64>,
     centre_residuals_mm: std::collections::BTreeMap<String, f64>,
     /// Section 3.6: shift of each 1-DOF centre along its axis onto the skin, mm.
     section_3_6_shift_mm: std::collections::BTreeMap<String, f64>,
@@ -409,7 +411,7 @@ fn reconstruct_stages<'p>(
                 .as_ref()
                 .map(|p| p.direction_residual_deg.clone()),
             landmark_residuals_mm: skin.landmark_residuals_mm.clone(),
-            dimension_residuals_mm: skin.dimension_residuals_mm.clone(),
+            caliper_pair_residuals_mm: skin.dimension_residuals_mm.clone(),
             centre_residuals_mm: skin.centre_residuals_mm.clone(),
             section_3_6_shift_mm: shifts,
             inverted_faces: skin.inverted_faces,

@@ -8,7 +8,8 @@
 //! with validation reading the outputs. Underneath sit [`geometry`] (meshes, Horn's absolute
 //! orientation, Loop subdivision), [`io`] (mesh formats), [`skeleton`] (the link tree, joint
 //! frames, forward kinematics and limits) and [`template`] (the generic hand and its spec).
-//! [`skin`] makes the template homologous to the subject. [`synth`] simulates subjects with
+//! [`skin`] makes the template homologous to the subject; [`measure`] takes the caliper
+//! dimensions on any skin by their definitions. [`synth`] simulates subjects with
 //! ground truth, as a lab and a CT scanner would produce them.
 //!
 //! All lengths are millimetres in f64; units are converted at the edges (readers and writers).
@@ -21,6 +22,7 @@ pub mod geometry;
 pub mod grasp;
 pub mod io;
 pub mod link;
+pub mod measure;
 pub mod mocap;
 pub mod pose;
 pub mod render;

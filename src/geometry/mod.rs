@@ -1,15 +1,18 @@
 //! Geometry core: indexed triangle meshes in f64 millimetres, their topology, rigid and similarity
-//! registration (Horn 1987), Loop subdivision and closest-point queries (AABB tree).
+//! registration (Horn 1987), Loop subdivision, closest-point queries (AABB tree) and plane
+//! sections.
 
 pub mod closest_point;
 pub mod horn;
 pub mod loop_subdivision;
 pub mod mesh;
+pub mod plane_section;
 pub mod sparse_cholesky;
 pub mod topology;
 
 pub use horn::{absolute_orientation, Registration};
 pub use mesh::TriMesh;
+pub use plane_section::{plane_section, Plane, SectionLoop};
 pub use topology::Topology;
 
 /// 3D point in millimetres.

@@ -74,3 +74,28 @@ pub fn record_frame(
         Rotation3::from_matrix_unchecked(m),
     ))
 }
+
+/// The skeleton of a `joints` table read from `path` (`link_model.json`, or a `truth.json`
+/// with frames): every joint's centre and frame ([`record_frame`]; errors name the file and the
+/// joint). The files carry no fingertips, so each digit's tip is put along its last joint's z
+/// (the distal link's direction) at the length of the link before it; only that direction is
+/// read by the caliper definitions ([`crate::measure::caliper`]).
+pub fn skeleton_from_records(
+    table: &BTreeMap<String, JointRecord>,
+    side: crate::anatomy::Side,
+    path: &Path,
+) -> Result<Skeleton> {
+    let joints = Joint::ALL
+        .iter()
+        .map(|&j| {
+            record_frame(table, j, path).map(|(centre, frame)| super::JointFrame { centre, frame })
+        })
+        .collect::<Result<Vec<_>>>()?;
+    let mut tips = [Point::origin(); 5];
+    for f in crate::anatomy::Finger::ALL {
+        let [_, prev, last] = f.joints();
+        let (p, l) = (&joints[prev.index()], &joints[last.index()]);
+        tips[f as usize] = l.centre + l.z() * (l.centre - p.centre).norm();
+    }
+    Ok(Skeleton { side, joints, tips })
+}

@@ -277,7 +277,8 @@ pub struct Truth {
     pub frame: String,
     /// True joint centres and axes in that frame.
     pub joints: BTreeMap<String, JointRecord>,
-    /// Error-free values of the 22 dimensions, mm.
+    /// Error-free values of the 22 dimensions, mm: the calipers by their definitions
+    /// ([`crate::measure::caliper`]) on the true skin.
     pub dimensions: BTreeMap<String, f64>,
     /// The reference posture relative to the template's, degrees per joint.
     pub reference_posture_deg: BTreeMap<String, [f64; 3]>,
@@ -341,62 +342,6 @@ fn draw_posture(rng: &mut Rng, posture: Posture) -> Pose {
     pose
 }
 
-/// The 22 caliper dimensions of a true hand that is not homologous to the template, from its
-/// skin, skeleton and landmark points: the lateral pairs between the landmarks `WRIST_RAD` /
-/// `WRIST_ULN` and `I_MCP_LAT` / `L_MCP_LAT`, every other one as the chord of the skin through the
-/// joint centre along the joint's x (breadths) or y (thickness) axis (rays both ways from the
-/// centre; for the hand thickness at the 3rd metacarpal head, along the palm's dorsal axis).
-///
-/// A stand-in: replaced by `crate::measure::caliper::measure_dimensions` (sections at the joints)
-/// when that module is merged.
-fn section_dimensions(
-    skin: &TriMesh,
-    sk: &Skeleton,
-    landmarks: &BTreeMap<String, (Point, Vec3)>,
-) -> Result<BTreeMap<Dimension, f64>> {
-    let tree = crate::geometry::closest_point::AabbTree::new(skin);
-    let chord = |d: Dimension, c: Point, dir: Vec3| -> Result<f64> {
-        let hit = |s: f64| {
-            tree.ray_cast(&c, &(dir * s), 0.0, 150.0)
-                .map(|h| h.t)
-                .ok_or_else(|| Error::invalid(format!("true hand: no skin across {}", d.name())))
-        };
-        Ok(hit(1.0)? + hit(-1.0)?)
-    };
-    let between = |a: &str, b: &str| -> Result<f64> {
-        match (landmarks.get(a), landmarks.get(b)) {
-            (Some(p), Some(q)) => Ok((p.0 - q.0).norm()),
-            _ => Err(Error::invalid(format!(
-                "true hand has no landmark {a} or {b}"
-            ))),
-        }
-    };
-    let mut out = BTreeMap::new();
-    for d in Dimension::all() {
-        let v = match d {
-            Dimension::WristBreadth => between("WRIST_RAD", "WRIST_ULN")?,
-            Dimension::HandBreadthDiagonal => between("I_MCP_LAT", "L_MCP_LAT")?,
-            Dimension::WristThickness => {
-                let w = sk.joint(Joint::Wrist);
-                chord(d, w.centre, w.y())?
-            }
-            Dimension::HandThicknessMc3 => {
-                chord(d, sk.centre(Joint::MMcp), sk.joint(Joint::Wrist).y())?
-            }
-            Dimension::BreadthProximal(f) | Dimension::BreadthDistal(f) => {
-                let j = crate::template::landmark_rule::dimension_joint(d, f);
-                chord(d, sk.centre(j), sk.joint(j).x())?
-            }
-            Dimension::ThicknessProximal(f) | Dimension::ThicknessDistal(f) => {
-                let j = crate::template::landmark_rule::dimension_joint(d, f);
-                chord(d, sk.centre(j), sk.joint(j).y())?
-            }
-        };
-        out.insert(d, v);
-    }
-    Ok(out)
-}
-
 /// Simulate a subject.
 pub fn simulate(opts: &SynthOptions) -> Result<SyntheticSubject> {
     if !(0.05..=2.0).contains(&opts.voxel_mm) {
@@ -436,28 +381,22 @@ pub fn simulate(opts: &SynthOptions) -> Result<SyntheticSubject> {
     let true_skeleton = hand.skeleton.clone();
     let posture = hand.posture.clone();
 
-    // 4. Truth: joints, error-free dimensions by the template spec's vertex pairs (a body
-    // homologous to the template) or by sections of the skin at the joints.
-    let sections = if hand.homologous_to_template {
-        None
-    } else {
-        Some(section_dimensions(
-            &true_skin,
-            &true_skeleton,
-            &hand.landmarks,
-        )?)
-    };
+    // 4. Truth: joints, and the error-free dimensions: the calipers' definitions applied to the
+    // true skin with the true skeleton and the true landmark points.
+    let landmark_points: BTreeMap<String, Point> = hand
+        .landmarks
+        .iter()
+        .map(|(k, (p, _))| (k.clone(), *p))
+        .collect();
+    let by_definition =
+        crate::measure::measure_dimensions(&true_skin, &true_skeleton, &landmark_points);
     let mut dimensions = BTreeMap::new();
     let mut measured = BTreeMap::new();
     let mut cal_rng = root.fork("caliper");
     for d in Dimension::all() {
-        let v = match &sections {
-            Some(s) => s[&d],
-            None => {
-                let [a, b] = template.spec.dimension(d).expect("spec checked on load");
-                (true_skin.vertices[a] - true_skin.vertices[b]).norm()
-            }
-        };
+        let v = by_definition[&d]
+            .clone()
+            .map_err(|e| Error::invalid(format!("the true hand's {d} cannot be measured: {e}")))?;
         dimensions.insert(d.name(), v);
         // Digital calipers read to 0.01 mm.
         let m = v + cal_rng.normal() * opts.preset.caliper_sd_mm();

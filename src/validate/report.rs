@@ -16,13 +16,16 @@ use super::error_map::{
 };
 use super::joint_fit::{joint_fits, JointFit};
 use super::joint_fit_plots::{joint_fit_figures, radius_figure};
-use super::link_accuracy::{compare, link_lengths, read_joints, LinkAccuracy};
+use super::link_accuracy::{compare, link_lengths, read_joints, read_truth, LinkAccuracy};
 use super::surface_error::SurfaceError;
-use crate::anatomy::Side;
+use crate::anatomy::{landmark_names, Side};
 use crate::error::{Error, Result};
 use crate::io::atomic::write_bytes_atomic;
 use crate::io::{obj, ply, Units};
+use crate::measure::landmarks_on_skin;
 use crate::mocap::subject::Subject;
+use crate::mocap::subject::TrialKind;
+use crate::skeleton::record::skeleton_from_records;
 use serde::Serialize;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -115,7 +118,7 @@ pub struct SubjectValidation {
     pub reference_stride: Option<usize>,
     /// Top of the error map's colour scale, mm.
     pub colour_scale_top_mm: Option<f64>,
-    /// The caliper dimensions measured on `skin.obj`.
+    /// The caliper dimensions measured on `skin.obj` by their definitions.
     pub dimensions: DimensionAccuracy,
     /// The seed paper's Figures 8-9 in numbers.
     pub joint_fits: Vec<JointFitSummary>,
@@ -195,10 +198,9 @@ pub fn validate_subject(
     let model_path = model.join("link_model.json");
     let joints = read_joints(&model_path)?;
     let truth = if references.truth_json {
-        let text = std::fs::read_to_string(&truth_path).map_err(|e| Error::io(&truth_path, e))?;
-        let truth: crate::synth::Truth = serde_json::from_str(&text)
-            .map_err(|e| Error::input(&truth_path, format!("not a truth file: {e}")))?;
-        Some((truth, compare(&joints, &read_joints(&truth_path)?)))
+        let truth = read_truth(&truth_path)?;
+        let link = compare(&joints, &truth.joints);
+        Some((truth, link))
     } else {
         None
     };
@@ -241,13 +243,24 @@ pub fn validate_subject(
     );
     let fits = fits?;
     drop(reference);
+    // The calipers on the skin: the model's joints, and the landmarks where the static trial's
+    // markers meet the skin.
+    let skeleton = skeleton_from_records(&joints, subject.hand, &model_path)?;
+    let reference_trial = subject.load_trial(TrialKind::Reference)?;
+    let markers: BTreeMap<String, crate::geometry::Point> = landmark_names()
+        .iter()
+        .filter_map(|n| {
+            let p = reference_trial.mean_position(n, 0..reference_trial.n_frames())?;
+            Some((n.to_string(), p))
+        })
+        .collect();
     let dimensions = dimension_accuracy(
         &skin,
-        &skin_path,
-        subject.hand,
+        &skeleton,
+        &landmarks_on_skin(&skin, &markers),
         &subject.dimensions,
         truth.as_ref().map(|t| &t.0.dimensions),
-    )?;
+    );
     let link = truth.map(|t| t.1);
     lap(
         if map.is_some() {

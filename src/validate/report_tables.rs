@@ -350,8 +350,15 @@ pub fn dimension_table(v: &SubjectValidation) -> Table {
         Cell::new(format!("{} ± {:.2}", signed(tm, 2), ts)),
     ]);
     t.summary_rows = 1;
+    let definitions = "Measured by their definitions (sections of the skin at the joints, the styloids and the metacarpal heads; see the README), not by the template's vertex pairs the fit met (reconstruct's report.json).";
+    let unmeasured: String = v
+        .dimensions
+        .not_measured
+        .iter()
+        .map(|(k, why)| format!(" Not measured: {k} ({why})."))
+        .collect();
     t.note = format!(
-        "The seed paper: 0.04 ± 0.13 mm against the given dimensions. Highlighted: differences above {FLAG_DIMENSION_MM} mm from the given, {FLAG_DIMENSION_TRUE_MM} mm from the true values. The given values are simulated caliper readings, so skin − true includes the caliper's own error."
+        "{definitions}{unmeasured} The seed paper: 0.04 ± 0.13 mm against the given dimensions. Highlighted: differences above {FLAG_DIMENSION_MM} mm from the given, {FLAG_DIMENSION_TRUE_MM} mm from the true values. The given values are simulated caliper readings, so skin − true includes the caliper's own error."
     );
     if v.dimensions.vs_true_mm.is_none() {
         // No truth.json: the true columns would be empty.
@@ -365,7 +372,7 @@ pub fn dimension_table(v: &SubjectValidation) -> Table {
         }
         t.head[3] = "skin − given (mm)".into();
         t.note = format!(
-            "The seed paper: 0.04 ± 0.13 mm against the given dimensions. Highlighted: differences above {FLAG_DIMENSION_MM} mm from the given caliper values."
+            "{definitions}{unmeasured} The seed paper: 0.04 ± 0.13 mm against the given dimensions. Highlighted: differences above {FLAG_DIMENSION_MM} mm from the given caliper values."
         );
     }
     t
@@ -504,6 +511,7 @@ mod tests {
                     given_mm: 20.0,
                     true_mm,
                 }],
+                not_measured: BTreeMap::new(),
                 mean_vs_given_mm: 1.0,
                 sd_vs_given_mm: 0.0,
                 vs_true_mm: true_mm.map(|_| (1.0, 0.0)),
