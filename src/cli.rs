@@ -3,6 +3,7 @@
 
 use crate::anatomy::Side;
 use crate::error::{Error, Result};
+use crate::io::output_paths::{check_output_dir, Inputs, MODEL_FILES};
 use crate::io::{atomic, obj, Units};
 use crate::skin::pipeline::SkinOptions;
 use crate::synth::{self, SynthOptions};
@@ -144,6 +145,8 @@ pub fn synth_options(
 /// `ergohand synth`: simulate a subject and write its folder.
 pub fn synth(opts: &SynthOptions, out: &Path, force: bool, log: &Log) -> Result<()> {
     let t0 = Instant::now();
+    check_output_dir(out, &[], "--out", &Inputs::default())?;
+    synth::check_subject_dir(out, force)?;
     let spinner = log.progress(2, "synth");
     spinner.set_message("simulating");
     let s = synth::simulate(opts)?;
@@ -254,6 +257,11 @@ pub fn reconstruct_prepared(
 ) -> Result<crate::link::LinkModel> {
     let t0 = Instant::now();
     let subject = crate::mocap::subject::Subject::load(subject_dir)?;
+    let inputs = Inputs::files(
+        std::iter::once(subject.toml_path())
+            .chain(subject.trials.values().map(|p| subject.dir.join(p))),
+    );
+    check_output_dir(out, &MODEL_FILES, "--out", &inputs)?;
     let template = template::load_template(subject.hand)?;
     if let Some(p) = prepared {
         if p.side != subject.hand {

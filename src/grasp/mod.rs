@@ -23,6 +23,7 @@ pub use hand::{PosableHand, RigidHand, SkinnedHand};
 use crate::anatomy::Joint;
 use crate::error::{Error, Result};
 use crate::geometry::{Point, TriMesh};
+use crate::io::output_paths::{check_output_dir, Inputs};
 use crate::io::Units;
 use autograsp::{autograsp, grasp_plan, root_for, AutograspOptions};
 use contact::{contacts, vertex_areas, ContactOptions, ContactSet, PartShape};
@@ -534,9 +535,14 @@ pub fn write_outputs(o: &GraspOutcome, out: &Path) -> Result<()> {
     img.save_png(out.join("contact_map.png"))
 }
 
+/// The files [`write_outputs`] writes into its folder.
+pub const OUTPUT_FILES: [&str; 3] = ["grasp.json", "grasp.glb", "contact_map.png"];
+
 /// `ergohand grasp SCENE.toml --model OUT --out DIR`: read the scene, load the hand (`model`
-/// overrides the scene's `hand.model`; neither: the template), close it on the part, measure,
-/// and write `grasp.json`, `grasp.glb` and `contact_map.png` into `out`.
+/// overrides the scene's `hand.model`; neither: the template), check the output folder (see
+/// [`crate::io::output_paths`]), close the hand on the part, measure, and write `grasp.json`,
+/// `grasp.glb` and `contact_map.png` into `out`.
+
 pub fn grasp_command(
     scene: &Path,
     model: Option<&Path>,
@@ -545,6 +551,11 @@ pub fn grasp_command(
 ) -> Result<GraspReport> {
     let s = scene::read_scene(scene)?;
     let model = model.map(Path::to_path_buf).or(s.hand_model.clone());
+    let mut inputs = Inputs::files([scene.to_path_buf(), s.part_file.clone()]);
+    if let Some(m) = &model {
+        inputs = inputs.with_model(m);
+    }
+    check_output_dir(out, &OUTPUT_FILES, "--out", &inputs)?;
     let hand = load_hand(model.as_deref(), s.side)?;
     let o = run_scene(&s, &hand, quiet)?;
     write_outputs(&o, out)?;

@@ -5,6 +5,7 @@ pub mod atomic;
 pub mod gltf;
 pub mod gmsh;
 pub mod obj;
+pub mod output_paths;
 pub mod ply;
 pub mod stl;
 pub mod units;

@@ -192,6 +192,22 @@ pub fn validate_subject(
         truth_json: truth_path.exists(),
     };
     let subject = Subject::load(subject_dir)?;
+    let inputs = crate::io::output_paths::Inputs::files(
+        [
+            subject.toml_path(),
+            truth_path.clone(),
+            reference_path.clone(),
+        ]
+        .into_iter()
+        .chain(subject.trials.values().map(|p| subject.dir.join(p))),
+    )
+    .with_model(model);
+    crate::io::output_paths::check_output_dir(
+        report,
+        &["metrics.json", "report.html", "report.md", "error-map.png"],
+        "--report",
+        &inputs,
+    )?;
     let model_path = model.join("link_model.json");
     let joints = read_joints(&model_path)?;
     let truth = if references.truth_json {
