@@ -182,6 +182,21 @@ struct ReconstructReport {
     warnings: Vec<String>,
     skin: SkinSummary,
     tet: crate::tet::TetReport,
+    /// [`reconstruct_fingerprint`] of the inputs this folder was made from (an extension of
+    /// the spec's outputs; `batch` compares it to decide what is up to date).
+    inputs_fnv1a: String,
+}
+
+/// The content fingerprint ([`crate::io::fingerprint`]) of a reconstruction's inputs:
+/// `subject.toml`, every trial it names, and the skin options.
+pub fn reconstruct_fingerprint(
+    subject: &crate::mocap::subject::Subject,
+    opts: &SkinOptions,
+) -> Result<String> {
+    let files: Vec<PathBuf> = std::iter::once(subject.toml_path())
+        .chain(subject.trials.values().map(|p| subject.dir.join(p)))
+        .collect();
+    crate::io::fingerprint::inputs_fingerprint(&files, &format!("{opts:?}"))
 }
 
 /// The skin stage's part of `report.json`.
@@ -324,6 +339,8 @@ fn reconstruct_stages<'p>(
         "reconstruct {}: link model from 7 trials",
         subject.name
     ));
+    // Fingerprinted before anything is read, so the record never claims newer inputs.
+    let inputs_fnv1a = reconstruct_fingerprint(subject, opts)?;
     let model = crate::link::estimate_link_model(subject)?;
     let t_link = t0.elapsed().as_secs_f64();
     for w in &model.warnings {
@@ -394,6 +411,7 @@ fn reconstruct_stages<'p>(
         .into_iter()
         .collect(),
         tet: tet_report,
+        inputs_fnv1a,
         warnings,
         skin: SkinSummary {
             fit_resolution: opts.resolution,

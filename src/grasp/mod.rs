@@ -277,8 +277,13 @@ pub fn run_scene(scene: &Scene, hand: &dyn PosableHand, quiet: bool) -> Result<G
     let mut timings = Timings::default();
     let started = std::time::Instant::now();
     let clock = started;
-    let mesh = read_part(&scene.part_file, scene.part_units)?.transformed(&scene.part_pose);
+    let read = read_part(&scene.part_file, scene.part_units)?.transformed(&scene.part_pose);
+    // Duplicate and degenerate triangles out before anything else sees the part.
+    let (mesh, cleaning) = parts::clean_part(&read);
     let (part, mut warnings) = PartShape::new(mesh).map_err(|e| e.in_file(&scene.part_file))?;
+    if cleaning.changed() {
+        warnings.insert(0, cleaning.describe());
+    }
     for w in warnings.iter_mut() {
         *w = format!(
             "{}: part.file = {}: {w}",
@@ -657,6 +662,32 @@ mod tests {
             e.contains(&scene_name) && e.contains("grasp.type") && e.contains("hook"),
             "{e}"
         );
+    }
+
+    /// A part whose every triangle is there twice (once flipped) grasps exactly as the part
+    /// itself, and the warning names what was removed.
+    #[test]
+    fn doubled_triangles_give_the_same_grasp() {
+        let dir = tempfile::tempdir().unwrap();
+        let cube = crate::geometry::mesh::tests::cuboid(60.0, 60.0, 200.0)
+            .transformed(&nalgebra::Isometry3::translation(-30.0, -30.0, 0.0));
+        let mut doubled = cube.clone();
+        doubled
+            .faces
+            .extend(cube.faces.iter().map(|&[a, b, c]| [a, c, b]));
+        let plain = run_scene(&scene_with(dir.path(), &cube, SIDE), hand(), true).unwrap();
+        let twice = run_scene(&scene_with(dir.path(), &doubled, SIDE), hand(), true).unwrap();
+        let (a, b) = (&plain.report, &twice.report);
+        assert_eq!(a.force_closure, b.force_closure);
+        assert_eq!(a.epsilon, b.epsilon);
+        assert_eq!(
+            serde_json::to_value(&a.contacts).unwrap(),
+            serde_json::to_value(&b.contacts).unwrap()
+        );
+        assert!(!a.contacts.is_empty());
+        let w = b.warnings.join("\n");
+        assert!(w.contains("12 repeated") && w.contains("part.file"), "{w}");
+        assert!(a.warnings.iter().all(|w| !w.contains("repeated")));
     }
 
     /// The report of the shipped scene `scenes/NAME.toml` with the default hand.

@@ -2,6 +2,7 @@
 //! millimetres; every writer writes to a temporary file and renames it (see [`atomic`]).
 
 pub mod atomic;
+pub mod fingerprint;
 pub mod gltf;
 pub mod gmsh;
 pub mod obj;
