@@ -82,6 +82,12 @@ pub fn read_c3d(path: &Path, labels: &BTreeMap<String, String>) -> Result<Trajec
     read_c3d_bytes(&bytes, labels, path)
 }
 
+/// The `POINT:UNITS` of C3D bytes, `None` when the file does not pass [`read_c3d_bytes`]'s
+/// header and parameter checks.
+pub fn point_units(bytes: &[u8]) -> Option<Units> {
+    check_layout(bytes).ok().map(|l| l.units)
+}
+
 /// [`read_c3d`] on bytes in memory; `label` is the file named in errors and kept as the
 /// trajectories' `source`. Never panics, never allocates much more than `bytes.len()`.
 pub fn read_c3d_bytes(
