@@ -1,7 +1,9 @@
 //! `ergohand batch SUBJECTS_DIR --out DIR [--jobs N]`: every subject folder of `SUBJECTS_DIR`
 //! reconstructed as `ergohand reconstruct` would ([`crate::cli::reconstruct_with`]) into
 //! `DIR/<subject folder name>/`, several at once, with one progress bar, a summary table and
-//! skipping of subjects whose outputs are newer than all their inputs.
+//! skipping of subjects whose outputs were made from the very bytes of their inputs (the content
+//! fingerprint `report.json` records, [`crate::cli::reconstruct_fingerprint`]) and are newer
+//! than them.
 //!
 //! Concurrency, and why it is safe:
 //! - **One pool of `jobs` threads.** `jobs` plain threads take subjects from a shared counter and
@@ -32,17 +34,16 @@ use std::sync::Mutex;
 use std::time::{Instant, SystemTime};
 
 /// The files `ergohand reconstruct` writes into its output folder (spec section 3 and
-/// [`crate::cli::reconstruct_with`]); a subject is up to date when all of them exist and are
-/// newer than every input.
-pub const OUTPUTS: [&str; 7] = [
-    "link_model.json",
-    "skin_low.obj",
-    "skin.obj",
-    "tet.vtk",
-    "tet.msh",
-    "hand.glb",
-    "report.json",
-];
+/// [`crate::cli::reconstruct_with`]); a subject is up to date when all of them exist, are
+/// newer than every input, and `report.json` records the inputs' current fingerprint.
+pub const OUTPUTS: [&str; 7] = crate::io::output_paths::MODEL_FILES;
+
+/// Threads per core at most: more only adds memory (each thread holds a subject) and switching.
+pub const JOBS_PER_CORE: usize = 2;
+
+/// A temporary file of [`crate::io::atomic`] older than this is left over from a killed run (a
+/// write takes seconds); younger ones may belong to a run still going and are kept.
+pub const STALE_TMP_AFTER: std::time::Duration = std::time::Duration::from_secs(600);
 
 /// The summary files written into the batch's output folder.
 pub const SUMMARY_MD: &str = "batch-summary.md";
@@ -242,10 +243,28 @@ pub fn inputs(subject_dir: &Path) -> Result<Vec<PathBuf>> {
     Ok(v)
 }
 
-/// Are all of `out`'s [`OUTPUTS`] newer than every input of `subject_dir`? `false` whenever
-/// anything cannot be read (a missing output, an unreadable `subject.toml`, a missing trial),
-/// so such a subject is run and reports its own error.
-pub fn up_to_date(subject_dir: &Path, out: &Path) -> bool {
+/// Were `out`'s [`OUTPUTS`] made from the inputs of `subject_dir` as they are now, with
+/// `opts`? All must exist and be newer than every input, and `report.json`'s `inputs_fnv1a`
+/// must equal the inputs' content fingerprint now ([`crate::cli::reconstruct_fingerprint`]),
+/// so a subject folder replaced with preserved timestamps is redone. `false` whenever anything
+/// cannot be read (a missing output, an unreadable `subject.toml`, a missing trial), so such a
+/// subject is run and reports its own error.
+pub fn up_to_date(subject_dir: &Path, out: &Path, opts: &SkinOptions) -> bool {
+    if !newer_than_inputs(subject_dir, out) {
+        return false;
+    }
+    let recorded = std::fs::read_to_string(out.join("report.json"))
+        .ok()
+        .and_then(|t| serde_json::from_str::<serde_json::Value>(&t).ok())
+        .and_then(|v| v["inputs_fnv1a"].as_str().map(str::to_string));
+    let now = Subject::load(subject_dir)
+        .and_then(|s| cli::reconstruct_fingerprint(&s, opts))
+        .ok();
+    matches!((recorded, now), (Some(r), Some(n)) if r == n)
+}
+
+/// Are all of `out`'s [`OUTPUTS`] newer than every input of `subject_dir`?
+fn newer_than_inputs(subject_dir: &Path, out: &Path) -> bool {
     let mtime = |p: &Path| -> Option<SystemTime> { std::fs::metadata(p).ok()?.modified().ok() };
     let newest_input = match inputs(subject_dir) {
         Ok(v) => v.iter().map(|p| mtime(p)).collect::<Option<Vec<_>>>(),
@@ -273,24 +292,32 @@ pub fn run(
     log: &Log,
 ) -> Result<BatchSummary> {
     let t0 = Instant::now();
-    let jobs = match opts.jobs {
-        Some(0) => return Err(Error::invalid("--jobs 0: give at least 1 thread")),
-        Some(n) => n,
-        None => std::thread::available_parallelism().map_or(1, |n| n.get()),
-    };
+    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+    if opts.jobs == Some(0) {
+        return Err(Error::invalid("--jobs 0: give at least 1 thread"));
+    }
     let subjects = discover(subjects_dir)?;
+    crate::io::output_paths::check_output_dir(
+        out,
+        &[SUMMARY_MD, SUMMARY_JSON],
+        "--out",
+        &crate::io::output_paths::Inputs::files(subjects.iter().map(|s| s.1.join(SUBJECT_FILE))),
+    )?;
     std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
-    let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(jobs)
-        .thread_name(|i| format!("ergohand-batch-{i}"))
-        .build()
-        .map_err(|e| Error::invalid(format!("--jobs {jobs}: cannot start the threads: {e}")))?;
+    let removed = remove_stale_temporaries(out, &subjects);
+    if !removed.is_empty() {
+        log.info(format!(
+            "batch: removed {} temporary files left by an interrupted run (e.g. {})",
+            removed.len(),
+            removed[0].display()
+        ));
+    }
 
     let mut rows: Vec<Option<SubjectOutcome>> = vec![None; subjects.len()];
     let mut todo = Vec::new();
     for (i, (name, dir)) in subjects.iter().enumerate() {
         let sout = out.join(name);
-        if up_to_date(dir, &sout) {
+        if up_to_date(dir, &sout, &opts.skin) {
             rows[i] = Some(SubjectOutcome {
                 subject: name.clone(),
                 status: Status::SkippedUpToDate,
@@ -311,10 +338,22 @@ pub fn run(
             String::new()
         };
         log.info(format!(
-            "batch: {skipped} of {} subjects up to date (every output newer than subject.toml and its trials), skipped{list}",
+            "batch: {skipped} of {} subjects up to date (outputs made from the same subject.toml, trials and options), skipped{list}",
             subjects.len()
         ));
     }
+    let (jobs, clamped) = clamp_jobs(opts.jobs, cores, todo.len());
+    if let (Some(asked), false) = (clamped, todo.is_empty()) {
+        log.warn(format!(
+            "batch: --jobs {asked} lowered to {jobs} ({JOBS_PER_CORE} per core on {cores} cores, \
+             at most one per subject to do)"
+        ));
+    }
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(jobs)
+        .thread_name(|i| format!("ergohand-batch-{i}"))
+        .build()
+        .map_err(|e| Error::invalid(format!("--jobs {jobs}: cannot start the threads: {e}")))?;
     if !todo.is_empty() {
         log.info(format!(
             "batch: reconstructing {} subjects with {jobs} threads into {}",
@@ -425,6 +464,48 @@ pub fn run(
     Ok(summary)
 }
 
+/// The threads to use: `asked` (default: the cores) at most [`JOBS_PER_CORE`] x `cores` and at
+/// most `todo` (no idle threads), at least 1; and `asked` again when a request was lowered.
+pub fn clamp_jobs(asked: Option<usize>, cores: usize, todo: usize) -> (usize, Option<usize>) {
+    let want = asked.unwrap_or(cores).max(1);
+    let cap = (JOBS_PER_CORE * cores.max(1)).min(todo).max(1);
+    match asked {
+        Some(n) if n > cap => (cap, Some(n)),
+        _ => (want.min(cap), None),
+    }
+}
+
+/// Remove the temporary files ([`crate::io::atomic`]'s hidden `.NAME.*.tmp`) that a killed run
+/// left in `out` and in the output folders of `subjects`, when older than [`STALE_TMP_AFTER`]
+/// (a younger one may be another run's write in progress). Returns the files removed.
+pub fn remove_stale_temporaries(out: &Path, subjects: &[(String, PathBuf)]) -> Vec<PathBuf> {
+    let now = SystemTime::now();
+    let mut removed = Vec::new();
+    let folders = std::iter::once(out.to_path_buf()).chain(subjects.iter().map(|s| out.join(&s.0)));
+    for dir in folders {
+        let Ok(entries) = std::fs::read_dir(&dir) else {
+            continue;
+        };
+        for e in entries.flatten() {
+            let name = e.file_name().to_string_lossy().into_owned();
+            if !(name.starts_with('.') && name.ends_with(".tmp")) {
+                continue;
+            }
+            let Ok(meta) = e.metadata() else { continue };
+            let old = meta
+                .modified()
+                .ok()
+                .and_then(|m| now.duration_since(m).ok())
+                .is_some_and(|age| age >= STALE_TMP_AFTER);
+            if meta.is_file() && old && std::fs::remove_file(e.path()).is_ok() {
+                removed.push(e.path());
+            }
+        }
+    }
+    removed.sort();
+    removed
+}
+
 /// `ergohand batch`: [`run`], then an error naming the failed subjects (so the command exits
 /// non-zero) when any failed.
 pub fn batch_command(
@@ -491,10 +572,18 @@ mod tests {
         let later = t0 + std::time::Duration::from_secs(50);
         set_mtime(&s.join(SUBJECT_FILE), t0);
         set_mtime(&s.join("trials/reference.c3d"), t0);
+        let opts = SkinOptions::default();
+        let up_to_date = |s: &Path, o: &Path| up_to_date(s, o, &opts);
         // No outputs yet.
         assert!(!up_to_date(&s, &o));
+        let fingerprint = cli::reconstruct_fingerprint(&Subject::load(&s).unwrap(), &opts).unwrap();
         for f in OUTPUTS {
-            std::fs::write(o.join(f), b"o").unwrap();
+            let text = if f == "report.json" {
+                format!("{{\"inputs_fnv1a\": \"{fingerprint}\"}}")
+            } else {
+                "o".into()
+            };
+            std::fs::write(o.join(f), text).unwrap();
             set_mtime(&o.join(f), later);
         }
         assert!(up_to_date(&s, &o));
@@ -512,8 +601,48 @@ mod tests {
         std::fs::write(o.join("hand.glb"), b"o").unwrap();
         set_mtime(&o.join("hand.glb"), later);
         assert!(up_to_date(&s, &o));
+        // Same times, other content (a folder replaced with `cp -p`): redo.
+        std::fs::write(s.join("trials/reference.c3d"), b"y").unwrap();
+        set_mtime(&s.join("trials/reference.c3d"), t0);
+        assert!(!up_to_date(&s, &o));
+        // Other options: redo.
+        std::fs::write(s.join("trials/reference.c3d"), b"x").unwrap();
+        set_mtime(&s.join("trials/reference.c3d"), t0);
+        assert!(up_to_date(&s, &o));
+        let full = SkinOptions {
+            centre_weight: 0.5,
+            ..SkinOptions::default()
+        };
+        assert!(!super::up_to_date(&s, &o, &full));
         std::fs::remove_file(s.join("trials/reference.c3d")).unwrap();
         assert!(!up_to_date(&s, &o));
+    }
+
+    #[test]
+    fn jobs_are_clamped() {
+        assert_eq!(clamp_jobs(Some(100_000), 2, 3), (3, Some(100_000)));
+        assert_eq!(clamp_jobs(Some(100_000), 2, 50), (4, Some(100_000)));
+        assert_eq!(clamp_jobs(Some(2), 2, 50), (2, None));
+        assert_eq!(clamp_jobs(None, 8, 3), (3, None));
+        assert_eq!(clamp_jobs(Some(3), 2, 0), (1, Some(3)));
+    }
+
+    #[test]
+    fn stale_temporaries_are_removed_fresh_ones_kept() {
+        let d = tempfile::tempdir().unwrap();
+        let out = d.path();
+        std::fs::create_dir_all(out.join("S1")).unwrap();
+        let stale = out.join("S1/.tet.vtk.123.0.456.tmp");
+        let fresh = out.join("S1/.skin.obj.124.0.789.tmp");
+        let other = out.join("S1/notes.tmp");
+        for p in [&stale, &fresh, &other] {
+            std::fs::write(p, b"half").unwrap();
+        }
+        set_mtime(&stale, SystemTime::now() - 2 * STALE_TMP_AFTER);
+        set_mtime(&other, SystemTime::now() - 2 * STALE_TMP_AFTER);
+        let removed = remove_stale_temporaries(out, &[("S1".into(), out.join("S1"))]);
+        assert_eq!(removed, vec![stale.clone()]);
+        assert!(!stale.exists() && fresh.exists() && other.exists());
     }
 
     #[test]

@@ -3,6 +3,7 @@
 
 use crate::anatomy::Side;
 use crate::error::{Error, Result};
+use crate::io::output_paths::{check_output_dir, Inputs, MODEL_FILES};
 use crate::io::{atomic, obj, Units};
 use crate::skin::pipeline::SkinOptions;
 use crate::synth::{self, SynthOptions};
@@ -144,6 +145,8 @@ pub fn synth_options(
 /// `ergohand synth`: simulate a subject and write its folder.
 pub fn synth(opts: &SynthOptions, out: &Path, force: bool, log: &Log) -> Result<()> {
     let t0 = Instant::now();
+    check_output_dir(out, &[], "--out", &Inputs::default())?;
+    synth::check_subject_dir(out, force)?;
     let spinner = log.progress(2, "synth");
     spinner.set_message("simulating");
     let s = synth::simulate(opts)?;
@@ -179,6 +182,21 @@ struct ReconstructReport {
     warnings: Vec<String>,
     skin: SkinSummary,
     tet: crate::tet::TetReport,
+    /// [`reconstruct_fingerprint`] of the inputs this folder was made from (an extension of
+    /// the spec's outputs; `batch` compares it to decide what is up to date).
+    inputs_fnv1a: String,
+}
+
+/// The content fingerprint ([`crate::io::fingerprint`]) of a reconstruction's inputs:
+/// `subject.toml`, every trial it names, and the skin options.
+pub fn reconstruct_fingerprint(
+    subject: &crate::mocap::subject::Subject,
+    opts: &SkinOptions,
+) -> Result<String> {
+    let files: Vec<PathBuf> = std::iter::once(subject.toml_path())
+        .chain(subject.trials.values().map(|p| subject.dir.join(p)))
+        .collect();
+    crate::io::fingerprint::inputs_fingerprint(&files, &format!("{opts:?}"))
 }
 
 /// The skin stage's part of `report.json`.
@@ -256,6 +274,11 @@ pub fn reconstruct_prepared(
 ) -> Result<crate::link::LinkModel> {
     let t0 = Instant::now();
     let subject = crate::mocap::subject::Subject::load(subject_dir)?;
+    let inputs = Inputs::files(
+        std::iter::once(subject.toml_path())
+            .chain(subject.trials.values().map(|p| subject.dir.join(p))),
+    );
+    check_output_dir(out, &MODEL_FILES, "--out", &inputs)?;
     let template = template::load_template(subject.hand)?;
     if let Some(p) = prepared {
         if p.side != subject.hand {
@@ -318,6 +341,8 @@ fn reconstruct_stages<'p>(
         "reconstruct {}: link model from 7 trials",
         subject.name
     ));
+    // Fingerprinted before anything is read, so the record never claims newer inputs.
+    let inputs_fnv1a = reconstruct_fingerprint(subject, opts)?;
     let model = crate::link::estimate_link_model(subject)?;
     let t_link = t0.elapsed().as_secs_f64();
     for w in &model.warnings {
@@ -388,6 +413,7 @@ fn reconstruct_stages<'p>(
         .into_iter()
         .collect(),
         tet: tet_report,
+        inputs_fnv1a,
         warnings,
         skin: SkinSummary {
             fit_resolution: opts.resolution,

@@ -124,14 +124,15 @@ enum Command {
         out: PathBuf,
     },
     /// Reconstruct every subject folder of SUBJECTS_DIR (a sub-folder holding subject.toml) in
-    /// parallel into OUT/<folder name>/, skipping subjects whose outputs are newer than their
-    /// inputs; a failing subject is reported and skipped, the exit status is non-zero if any
+    /// parallel into OUT/<folder name>/, skipping subjects whose outputs were made from the same
+    /// input content (and are newer); a failing subject is reported and skipped, the exit status is non-zero if any
     /// failed. Summary in OUT/batch-summary.md and .json.
     Batch {
         subjects_dir: PathBuf,
         #[arg(long)]
         out: PathBuf,
-        /// Threads, shared by the subjects running at once (default: the available cores).
+        /// Threads, shared by the subjects running at once (default: the available cores; at
+        /// most 2 per core and one per subject to do).
         #[arg(long)]
         jobs: Option<usize>,
     },

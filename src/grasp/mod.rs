@@ -23,6 +23,7 @@ pub use hand::{PosableHand, RigidHand, SkinnedHand};
 use crate::anatomy::Joint;
 use crate::error::{Error, Result};
 use crate::geometry::{Point, TriMesh};
+use crate::io::output_paths::{check_output_dir, Inputs};
 use crate::io::Units;
 use autograsp::{autograsp, grasp_plan, root_for, AutograspOptions};
 use contact::{contacts, vertex_areas, ContactOptions, ContactSet, PartShape};
@@ -276,8 +277,13 @@ pub fn run_scene(scene: &Scene, hand: &dyn PosableHand, quiet: bool) -> Result<G
     let mut timings = Timings::default();
     let started = std::time::Instant::now();
     let clock = started;
-    let mesh = read_part(&scene.part_file, scene.part_units)?.transformed(&scene.part_pose);
+    let read = read_part(&scene.part_file, scene.part_units)?.transformed(&scene.part_pose);
+    // Duplicate and degenerate triangles out before anything else sees the part.
+    let (mesh, cleaning) = parts::clean_part(&read);
     let (part, mut warnings) = PartShape::new(mesh).map_err(|e| e.in_file(&scene.part_file))?;
+    if cleaning.changed() {
+        warnings.insert(0, cleaning.describe());
+    }
     for w in warnings.iter_mut() {
         *w = format!(
             "{}: part.file = {}: {w}",
@@ -534,9 +540,14 @@ pub fn write_outputs(o: &GraspOutcome, out: &Path) -> Result<()> {
     img.save_png(out.join("contact_map.png"))
 }
 
+/// The files [`write_outputs`] writes into its folder.
+pub const OUTPUT_FILES: [&str; 3] = ["grasp.json", "grasp.glb", "contact_map.png"];
+
 /// `ergohand grasp SCENE.toml --model OUT --out DIR`: read the scene, load the hand (`model`
-/// overrides the scene's `hand.model`; neither: the template), close it on the part, measure,
-/// and write `grasp.json`, `grasp.glb` and `contact_map.png` into `out`.
+/// overrides the scene's `hand.model`; neither: the template), check the output folder (see
+/// [`crate::io::output_paths`]), close the hand on the part, measure, and write `grasp.json`,
+/// `grasp.glb` and `contact_map.png` into `out`.
+
 pub fn grasp_command(
     scene: &Path,
     model: Option<&Path>,
@@ -545,6 +556,11 @@ pub fn grasp_command(
 ) -> Result<GraspReport> {
     let s = scene::read_scene(scene)?;
     let model = model.map(Path::to_path_buf).or(s.hand_model.clone());
+    let mut inputs = Inputs::files([scene.to_path_buf(), s.part_file.clone()]);
+    if let Some(m) = &model {
+        inputs = inputs.with_model(m);
+    }
+    check_output_dir(out, &OUTPUT_FILES, "--out", &inputs)?;
     let hand = load_hand(model.as_deref(), s.side)?;
     let o = run_scene(&s, &hand, quiet)?;
     write_outputs(&o, out)?;
@@ -646,6 +662,32 @@ mod tests {
             e.contains(&scene_name) && e.contains("grasp.type") && e.contains("hook"),
             "{e}"
         );
+    }
+
+    /// A part whose every triangle is there twice (once flipped) grasps exactly as the part
+    /// itself, and the warning names what was removed.
+    #[test]
+    fn doubled_triangles_give_the_same_grasp() {
+        let dir = tempfile::tempdir().unwrap();
+        let cube = crate::geometry::mesh::tests::cuboid(60.0, 60.0, 200.0)
+            .transformed(&nalgebra::Isometry3::translation(-30.0, -30.0, 0.0));
+        let mut doubled = cube.clone();
+        doubled
+            .faces
+            .extend(cube.faces.iter().map(|&[a, b, c]| [a, c, b]));
+        let plain = run_scene(&scene_with(dir.path(), &cube, SIDE), hand(), true).unwrap();
+        let twice = run_scene(&scene_with(dir.path(), &doubled, SIDE), hand(), true).unwrap();
+        let (a, b) = (&plain.report, &twice.report);
+        assert_eq!(a.force_closure, b.force_closure);
+        assert_eq!(a.epsilon, b.epsilon);
+        assert_eq!(
+            serde_json::to_value(&a.contacts).unwrap(),
+            serde_json::to_value(&b.contacts).unwrap()
+        );
+        assert!(!a.contacts.is_empty());
+        let w = b.warnings.join("\n");
+        assert!(w.contains("12 repeated") && w.contains("part.file"), "{w}");
+        assert!(a.warnings.iter().all(|w| !w.contains("repeated")));
     }
 
     /// The report of the shipped scene `scenes/NAME.toml` with the default hand.

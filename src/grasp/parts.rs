@@ -246,6 +246,109 @@ fn pen(p: &Point) -> f64 {
     })
 }
 
+/// What [`clean_part`] removed from a part mesh.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct PartCleaning {
+    /// Vertices merged into another within the tolerance.
+    pub welded_vertices: usize,
+    /// Faces of (numerically) zero area, collapsed ones included.
+    pub degenerate_faces: usize,
+    /// Faces on the same three vertices as an earlier face, in either orientation.
+    pub repeated_faces: usize,
+    /// Vertices no face uses.
+    pub unused_vertices: usize,
+}
+
+impl PartCleaning {
+    /// Whether anything was removed.
+    pub fn changed(&self) -> bool {
+        *self != PartCleaning::default()
+    }
+
+    /// One line naming the counts, for the scene's warning.
+    pub fn describe(&self) -> String {
+        format!(
+            "part cleaned before use: {} vertices welded, {} zero-area and {} repeated triangles \
+             and {} unused vertices removed",
+            self.welded_vertices, self.degenerate_faces, self.repeated_faces, self.unused_vertices
+        )
+    }
+}
+
+/// Relative weld tolerance of [`clean_part`]: vertices within this fraction of the part's
+/// bounding-box diagonal are one (1e-6: 0.2 um on a 200 mm part, far below any modelled
+/// feature, far above the rounding of 32-bit STL coordinates of a mm-sized scene).
+pub const WELD_TOLERANCE: f64 = 1e-6;
+
+/// A part mesh as the grasp checks need it: vertices within [`WELD_TOLERANCE`] x the diagonal
+/// welded, faces of zero area (below the square of that tolerance) and faces repeating an
+/// earlier face's vertex set (in either orientation: a doubled or two-sided export) dropped,
+/// and unused vertices removed, keeping the first occurrence of everything in input order.
+/// A clean mesh comes back unchanged. Repeated triangles otherwise double the contact query's
+/// work and the contacts themselves (each contact is found on both copies), which changes the
+/// wrench set and so the grasp quality.
+pub fn clean_part(mesh: &TriMesh) -> (TriMesh, PartCleaning) {
+    let diag = mesh.diagonal();
+    let tol = WELD_TOLERANCE * diag;
+    let (welded, remap) = mesh.weld(tol);
+    let mut report = PartCleaning {
+        welded_vertices: mesh.n_vertices() - welded.n_vertices(),
+        ..Default::default()
+    };
+    // Faces that collapsed in the weld count as degenerate.
+    let collapsed = mesh
+        .faces
+        .iter()
+        .filter(|f| {
+            let g = [remap[f[0]], remap[f[1]], remap[f[2]]];
+            g[0] == g[1] || g[1] == g[2] || g[0] == g[2]
+        })
+        .count();
+    report.degenerate_faces = collapsed;
+    let min_area = tol * tol;
+    let mut seen = std::collections::HashSet::new();
+    let mut faces = Vec::with_capacity(welded.faces.len());
+    for f in &welded.faces {
+        let [a, b, c] = f.map(|i| welded.vertices[i]);
+        if 0.5 * (b - a).cross(&(c - a)).norm() <= min_area {
+            report.degenerate_faces += 1;
+            continue;
+        }
+        let mut key = *f;
+        key.sort_unstable();
+        if !seen.insert(key) {
+            report.repeated_faces += 1;
+            continue;
+        }
+        faces.push(*f);
+    }
+    let mut new_index = vec![usize::MAX; welded.n_vertices()];
+    let mut vertices = Vec::with_capacity(welded.n_vertices());
+    for f in &faces {
+        for &i in f {
+            if new_index[i] == usize::MAX {
+                new_index[i] = vertices.len();
+                vertices.push(welded.vertices[i]);
+            }
+        }
+    }
+    // Keep the input's vertex order (the first-use order above would renumber a clean mesh).
+    let mut order: Vec<usize> = (0..welded.n_vertices())
+        .filter(|&i| new_index[i] != usize::MAX)
+        .collect();
+    order.sort_unstable();
+    let mut index = vec![usize::MAX; welded.n_vertices()];
+    for (k, &i) in order.iter().enumerate() {
+        index[i] = k;
+    }
+    report.unused_vertices = welded.n_vertices() - order.len();
+    let cleaned = TriMesh {
+        vertices: order.iter().map(|&i| welded.vertices[i]).collect(),
+        faces: faces.iter().map(|f| f.map(|i| index[i])).collect(),
+    };
+    (cleaned, report)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -296,6 +399,42 @@ mod tests {
                 );
             }
         }
+    }
+
+    #[test]
+    fn cleaning_removes_doubles_and_keeps_a_clean_part() {
+        let cube = crate::geometry::mesh::tests::cuboid(60.0, 60.0, 200.0);
+        let (same, r) = clean_part(&cube);
+        assert!(!r.changed(), "{r:?}");
+        assert_eq!(same.vertices, cube.vertices);
+        assert_eq!(same.faces, cube.faces);
+        // Every triangle twice (once flipped, as a two-sided export), a vertex repeated a
+        // fraction of a micrometre off, a sliver of zero area and an unused vertex.
+        let mut dirty = cube.clone();
+        let n = dirty.n_vertices();
+        let [a, b, c] = cube.faces[0];
+        dirty
+            .vertices
+            .push(cube.vertices[a] + nalgebra::Vector3::new(1e-5, 0.0, 0.0));
+        dirty.vertices.push(Point::new(500.0, 0.0, 0.0));
+        dirty
+            .faces
+            .extend(cube.faces.iter().map(|&[a, b, c]| [a, c, b]));
+        dirty.faces.push([n, b, c]);
+        dirty.faces.push([a, b, b]);
+        let (clean, r) = clean_part(&dirty);
+        assert_eq!(clean.vertices, cube.vertices);
+        assert_eq!(clean.faces, cube.faces);
+        assert_eq!(
+            r,
+            PartCleaning {
+                welded_vertices: 1,
+                degenerate_faces: 1,
+                repeated_faces: 13,
+                unused_vertices: 1,
+            }
+        );
+        assert!(r.describe().contains("13 repeated"));
     }
 
     #[test]

@@ -762,10 +762,24 @@ fn to_global(traj: &Trajectories, rf: usize, reference_palm: &[Point]) -> Result
 /// Reconstruct the link model of a subject from its trials.
 pub fn estimate_link_model(subject: &Subject) -> Result<LinkModel> {
     let mut trials = BTreeMap::new();
+    let mut warnings = Vec::new();
     for kind in TrialKind::ALL {
-        trials.insert(kind.key().to_string(), subject.load_trial(kind)?);
+        let mut t = subject.load_trial(kind)?;
+        // Absurd single samples out before any fit sees them (a robust per-marker test).
+        for (marker, n) in crate::mocap::plausibility::drop_outliers(&mut t) {
+            warnings.push(format!(
+                "{}: marker {marker}: {n} samples dropped as outliers (more than {} mm beyond \
+                 the marker's usual distance from its median position)",
+                t.source.display(),
+                crate::mocap::plausibility::OUTLIER_FLOOR_MM
+            ));
+        }
+        trials.insert(kind.key().to_string(), t);
     }
-    estimate_link_model_from(subject.hand, subject.reference_frame, &trials)
+    let mut model = estimate_link_model_from(subject.hand, subject.reference_frame, &trials)?;
+    warnings.append(&mut model.warnings);
+    model.warnings = warnings;
+    Ok(model)
 }
 
 /// [`estimate_link_model`] from trials already in memory, keyed as in `[trials]` of

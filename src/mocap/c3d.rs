@@ -63,9 +63,12 @@ const HIDDEN_GROUPS: [&str; 5] = [
     "SEG",
 ];
 
-/// Largest frame count [`write_c3d`] accepts: `c3dio` writes the header's first and last frame as
-/// u16, starting at frame 1.
-pub const MAX_WRITE_FRAMES: usize = 65_535;
+/// Largest frame count [`write_c3d`] accepts: beyond 65,535 frames `POINT:FRAMES` is written as
+/// a 32-bit float, exact up to 2^24.
+pub const MAX_WRITE_FRAMES: usize = 1 << 24;
+
+/// Frame counts a C3D header (16-bit words 4-5) and an integer `POINT:FRAMES` can hold.
+const MAX_SHORT_FRAMES: usize = 65_535;
 
 /// Largest marker count [`write_c3d`] accepts: `c3dio` writes `POINT:LABELS` with u8 dimensions.
 pub const MAX_WRITE_MARKERS: usize = 255;
@@ -77,6 +80,12 @@ pub const MAX_WRITE_MARKERS: usize = 255;
 pub fn read_c3d(path: &Path, labels: &BTreeMap<String, String>) -> Result<Trajectories> {
     let bytes = read_bytes(path)?;
     read_c3d_bytes(&bytes, labels, path)
+}
+
+/// The `POINT:UNITS` of C3D bytes, `None` when the file does not pass [`read_c3d_bytes`]'s
+/// header and parameter checks.
+pub fn point_units(bytes: &[u8]) -> Option<Units> {
+    check_layout(bytes).ok().map(|l| l.units)
 }
 
 /// [`read_c3d`] on bytes in memory; `label` is the file named in errors and kept as the
@@ -168,7 +177,15 @@ struct Layout {
     labels: Vec<String>,
     /// File offsets of the names of the groups in [`HIDDEN_GROUPS`].
     hidden_names: Vec<(usize, usize)>,
+    /// File offsets of the data of `TRIAL:ACTUAL_START_FIELD` and `ACTUAL_END_FIELD` when both
+    /// are present, and the end field's words that make `c3dio` count `n_frames` from a start
+    /// field of [1, 0].
+    trial_fields: Option<(usize, usize, [u16; 2])>,
+    proc: Proc,
 }
+
+/// Most frames `c3dio` can count from `TRIAL:ACTUAL_*_FIELD` (low + 65,535 x high, high <= 1).
+const C3DIO_TRIAL_FRAMES: u128 = 2 * 65_535;
 
 /// The processor type of user guide 4.1 (parameter block byte 4 = 83 + type): byte order and
 /// float encoding of every number in the file.
@@ -221,6 +238,8 @@ struct Param {
     name: String,
     /// -1 char, 1 byte, 2 integer, 4 float.
     kind: i8,
+    /// Offset of `data` in the parameter section.
+    at: usize,
     /// Dimensions after `c3dio`'s normalisation (zeros dropped, ones dropped for non-char,
     /// `[1]` when nothing is left).
     dims: Vec<usize>,
@@ -370,6 +389,7 @@ fn walk_parameters(section: &[u8], proc: Proc) -> std::result::Result<Params, St
                 group: String::new(),
                 name: name.to_ascii_uppercase(),
                 kind,
+                at: i - len,
                 dims,
                 data,
             };
@@ -549,20 +569,22 @@ fn check_layout(bytes: &[u8]) -> std::result::Result<Layout, String> {
         }
     }
 
-    // The frame count, as c3dio's Points::calc_num_frames derives it.
+    // The frame count (user guide 3.1 and 4.4; c3d.org, "The C3D frame count"): POINT:FRAMES
+    // (an integer up to 65,535, a float beyond), replaced by TRIAL:ACTUAL_END_FIELD -
+    // ACTUAL_START_FIELD + 1 when both are present (each a 32-bit frame number stored as two
+    // 16-bit words, low word first), and POINT:LONG_FRAMES (a float) when it is larger. The
+    // header's 16-bit frame range (words 4-5) cannot hold more than 65,535 frames and is not used.
     let mut n_frames = p("POINT", "FRAMES")
         .and_then(|f| f.count(proc))
         .unwrap_or(0) as u128;
-    let field = |name: &str| -> std::result::Result<Option<u128>, String> {
+    let field = |name: &str| -> std::result::Result<Option<(u128, usize)>, String> {
         let Some(f) = p("TRIAL", name) else {
             return Ok(None);
         };
         match f.ints(proc) {
             Some(v) if f.dims.len() == 1 && v.len() == 2 => {
-                if v[1] as u16 > 1 {
-                    return Err(format!("TRIAL:{name} is beyond 131070 frames"));
-                }
-                Ok(Some(v[0] as u16 as u128 + v[1] as u16 as u128 * 65535))
+                let frame = v[0] as u16 as u128 + ((v[1] as u16 as u128) << 16);
+                Ok(Some((frame, BLOCK + f.at)))
             }
             Some(_) if f.dims.len() == 1 => Ok(None),
             _ => Err(format!("TRIAL:{name} is not a list of integers")),
@@ -570,16 +592,31 @@ fn check_layout(bytes: &[u8]) -> std::result::Result<Layout, String> {
     };
     let end = field("ACTUAL_END_FIELD")?;
     let start = field("ACTUAL_START_FIELD")?;
-    if let (Some(s), Some(e)) = (start, end) {
+    let mut trial_fields = None;
+    if let (Some((s, s_at)), Some((e, e_at))) = (start, end) {
         if e < s {
             return Err(format!(
                 "TRIAL:ACTUAL_END_FIELD ({e}) is before TRIAL:ACTUAL_START_FIELD ({s})"
             ));
         }
         n_frames = e - s + 1;
+        trial_fields = Some((s_at, e_at));
     }
+    // c3dio reads these two fields as low + 65,535 x high in 16-bit arithmetic (one frame short
+    // past 65,535, wrapping past 131,070); `parse_with_c3dio` rewrites them in its copy so that
+    // c3dio's formula gives the count found here, which it can for up to 131,070 frames.
+    let c3dio_trial_frames = trial_fields.map(|_| n_frames.min(C3DIO_TRIAL_FRAMES));
+    let mut c3dio_frames = c3dio_trial_frames.unwrap_or(n_frames);
     if let Some(l) = p("POINT", "LONG_FRAMES") {
-        n_frames = n_frames.max(l.count(proc).unwrap_or(0) as u128);
+        let long = l.count(proc).unwrap_or(0) as u128;
+        n_frames = n_frames.max(long);
+        c3dio_frames = c3dio_frames.max(long);
+    }
+    if c3dio_frames != n_frames {
+        return Err(format!(
+            "TRIAL:ACTUAL_START_FIELD and ACTUAL_END_FIELD give {n_frames} frames; more than \
+             {C3DIO_TRIAL_FRAMES} are read only with POINT:FRAMES or POINT:LONG_FRAMES as a float"
+        ));
     }
     if n_frames == 0 {
         return Err("the trial has no frames (POINT:FRAMES is 0 or missing)".into());
@@ -623,6 +660,12 @@ fn check_layout(bytes: &[u8]) -> std::result::Result<Layout, String> {
         .collect();
     Ok(Layout {
         hidden_names,
+        trial_fields: trial_fields.map(|(s_at, e_at)| {
+            let n = n_frames.min(C3DIO_TRIAL_FRAMES) as u32;
+            let end = if n > 65_535 { [n - 65_535, 1] } else { [n, 0] };
+            (s_at, e_at, end.map(|w| w as u16))
+        }),
+        proc,
         data_start,
         n_points,
         n_frames: n_frames as usize,
@@ -642,7 +685,9 @@ static C3DIO_PANICS: AtomicUsize = AtomicUsize::new(0);
 ///   length, so padding never adds frames);
 /// - with the groups of [`HIDDEN_GROUPS`] renamed to lower case and the header's event-label
 ///   flag (word 150) cleared, so that its event, force-plate, manufacturer and segment parsers
-///   see nothing (their data is not used here).
+///   see nothing (their data is not used here);
+/// - with `TRIAL:ACTUAL_START_FIELD` and `ACTUAL_END_FIELD` rewritten (see `Layout`) so that
+///   `c3dio` counts the frames found by [`check_layout`].
 fn parse_with_c3dio(bytes: &[u8], layout: &Layout) -> std::result::Result<C3d, String> {
     let want = bytes.len().div_ceil(BLOCK).max(layout.data_start) * BLOCK;
     let mut buf = Vec::with_capacity(want);
@@ -652,6 +697,16 @@ fn parse_with_c3dio(bytes: &[u8], layout: &Layout) -> std::result::Result<C3d, S
         buf[at..at + len].make_ascii_lowercase();
     }
     buf[298..300].fill(0);
+    if let Some((s_at, e_at, end)) = layout.trial_fields {
+        let word = |w: u16| match layout.proc {
+            Proc::Mips => w.to_be_bytes(),
+            _ => w.to_le_bytes(),
+        };
+        for (at, words) in [(s_at, [1, 0]), (e_at, end)] {
+            buf[at..at + 2].copy_from_slice(&word(words[0]));
+            buf[at + 2..at + 4].copy_from_slice(&word(words[1]));
+        }
+    }
     // c3dio's errors carry whole parameters; keep the message to one short line.
     let parse = || C3d::from_bytes(&buf).map_err(|e| format!("{e:?}"));
     match catch_unwind(AssertUnwindSafe(parse)) {
@@ -710,11 +765,7 @@ fn check_writable(traj: &Trajectories) -> std::result::Result<(), String> {
     if traj.positions.len() != n {
         return Err(format!("{n} labels for {} tracks", traj.positions.len()));
     }
-    if frames == 0 || frames > MAX_WRITE_FRAMES {
-        return Err(format!(
-            "cannot write {frames} frames (1 to {MAX_WRITE_FRAMES} fit in the header)"
-        ));
-    }
+    check_frame_count(frames)?;
     let rate = traj.frame_rate as f32;
     if !(rate.is_finite() && rate > 0.0) {
         return Err(format!(
@@ -757,6 +808,16 @@ fn check_writable(traj: &Trajectories) -> std::result::Result<(), String> {
     Ok(())
 }
 
+/// A frame count [`write_c3d`] can write exactly (1 to [`MAX_WRITE_FRAMES`]).
+fn check_frame_count(frames: usize) -> std::result::Result<(), String> {
+    if frames == 0 || frames > MAX_WRITE_FRAMES {
+        return Err(format!(
+            "cannot write {frames} frames (1 to {MAX_WRITE_FRAMES} are exact in POINT:FRAMES)"
+        ));
+    }
+    Ok(())
+}
+
 /// The `c3dio` value to write: groups `c3dio` indexes, points, and the POINT parameters it does
 /// not write itself (RATE, SCALE, a DATA_START placeholder patched later).
 fn build_c3dio(traj: &Trajectories) -> std::result::Result<C3d, String> {
@@ -772,7 +833,7 @@ fn build_c3dio(traj: &Trajectories) -> std::result::Result<C3d, String> {
     points.frame_rate = traj.frame_rate as f32;
     points.scale_factor = 1.0;
     points.first_frame = 1;
-    points.last_frame = traj.n_frames() as u16;
+    points.last_frame = traj.n_frames().min(MAX_SHORT_FRAMES) as u16;
     for f in 0..traj.n_frames() {
         let row = traj
             .positions
@@ -810,6 +871,11 @@ fn build_c3dio(traj: &Trajectories) -> std::result::Result<C3d, String> {
 ///   zero record ends the section;
 /// - `POINT:FRAMES` becomes an integer (4.4; `c3dio` writes a float), `POINT:DATA_START` and the
 ///   parameter block count (section byte 3) get their values;
+/// - beyond 65,535 frames, as c3d.org's "Maintaining C3D frame count compatibility" asks:
+///   `POINT:FRAMES` stays a float, the header's frame range is 1..65,535, and
+///   `POINT:LONG_FRAMES` (float) and `TRIAL:ACTUAL_START_FIELD` / `ACTUAL_END_FIELD` (two 16-bit
+///   words each, low first) are added for readers that take the count from those (the Python
+///   `c3d` package, Vicon's software);
 /// - the residual word of every sample is -1.0 when missing and 0.0 when present (5.2; `c3dio`
 ///   writes 255.0 for -1);
 /// - the data is padded with zeros to whole blocks (chapter 2).
@@ -834,7 +900,6 @@ fn standardise(bytes: &[u8], traj: &Trajectories) -> std::result::Result<Vec<u8>
         .iter()
         .filter(|p| group_index(&p.group).is_some())
         .collect();
-    list.sort_by_key(|p| (group_index(&p.group), p.name.clone()));
 
     let mut sec = vec![1u8, 0x50, 0, 0x54];
     for (i, g) in REQUIRED_GROUPS.iter().enumerate() {
@@ -843,12 +908,48 @@ fn standardise(bytes: &[u8], traj: &Trajectories) -> std::result::Result<Vec<u8>
         sec.extend(3u16.to_le_bytes());
         sec.push(0);
     }
-    let frames_word = (frames as u16).to_le_bytes();
+    let long = frames > MAX_SHORT_FRAMES;
+    let frames_value = if long {
+        (frames as f32).to_le_bytes().to_vec()
+    } else {
+        (frames as u16).to_le_bytes().to_vec()
+    };
+    let words = |n: usize| -> Vec<u8> {
+        let n = n as u32;
+        [(n & 0xffff) as u16, (n >> 16) as u16]
+            .iter()
+            .flat_map(|w| w.to_le_bytes())
+            .collect()
+    };
+    let extra = |group: &str, name: &str, kind: i8, data: Vec<u8>| Param {
+        group: group.into(),
+        name: name.into(),
+        kind,
+        at: 0,
+        dims: if kind == 2 { vec![2] } else { vec![1] },
+        data,
+    };
+    let long_params = if long {
+        vec![
+            extra(
+                "POINT",
+                "LONG_FRAMES",
+                4,
+                (frames as f32).to_le_bytes().to_vec(),
+            ),
+            extra("TRIAL", "ACTUAL_START_FIELD", 2, words(1)),
+            extra("TRIAL", "ACTUAL_END_FIELD", 2, words(frames)),
+        ]
+    } else {
+        Vec::new()
+    };
+    list.extend(long_params.iter());
+    list.sort_by_key(|p| (group_index(&p.group), p.name.clone()));
     let mut data_start_at = None;
     for p in list {
         let (kind, dims, value): (i8, Vec<usize>, &[u8]) = match (p.group.as_str(), p.name.as_str())
         {
-            ("POINT", "FRAMES") => (2, vec![1], &frames_word),
+            ("POINT", "FRAMES") => (if long { 4 } else { 2 }, vec![1], &frames_value),
             _ => (p.kind, p.dims.clone(), &p.data),
         };
         if p.name.len() > 127 || dims.len() > 255 || dims.iter().any(|&d| d > 255) {
@@ -1244,6 +1345,98 @@ mod tests {
         assert!(read_err(&b).contains("POINT:USED is 3"));
     }
 
+    /// Frame counts past the header's 16 bits: written as the C3D community asks and read back
+    /// exactly, by this reader and by what `c3dio` alone makes of the same file.
+    #[test]
+    fn frame_counts_beyond_16_bits_round_trip() {
+        let dir = tempfile::tempdir().unwrap();
+        for frames in [65_535, 65_536, 100_000, 140_000] {
+            let path = dir.path().join(format!("long{frames}.c3d"));
+            let mut t = sample(&["PALM_1", "PALM_2"], 3);
+            // Each frame's x is its index, so a frame lost or shifted anywhere shows.
+            t.positions = (0..2)
+                .map(|m| {
+                    (0..frames)
+                        .map(|f| (f % 1000 != 7).then(|| Point::new(f as f64, m as f64, 0.5)))
+                        .collect()
+                })
+                .collect();
+            write_c3d(&path, &t).unwrap();
+            let back = read_c3d(&path, &no_map()).unwrap();
+            assert_eq!(back.n_frames(), frames);
+            assert_eq!(back.positions, t.positions);
+
+            let bytes = std::fs::read(&path).unwrap();
+            let ds = u16::from_le_bytes([bytes[16], bytes[17]]) as usize;
+            let params = walk_parameters(&bytes[BLOCK..BLOCK * (ds - 1)], Proc::Intel).unwrap();
+            let words = |name: &str| {
+                let v = params
+                    .get("TRIAL", name)
+                    .unwrap()
+                    .ints(Proc::Intel)
+                    .unwrap();
+                v[0] as u16 as usize + ((v[1] as u16 as usize) << 16)
+            };
+            let header_last = u16::from_le_bytes([bytes[8], bytes[9]]) as usize;
+            let point_frames = params.get("POINT", "FRAMES").unwrap();
+            if frames <= 65_535 {
+                assert_eq!(
+                    point_frames.ints(Proc::Intel).unwrap(),
+                    vec![frames as u16 as i16]
+                );
+                assert!(params.get("TRIAL", "ACTUAL_END_FIELD").is_none());
+                assert_eq!(header_last, frames);
+            } else {
+                // The standard's float POINT:FRAMES, the header at its 16-bit ceiling, and the
+                // 32-bit frame numbers of the TRIAL group.
+                assert_eq!(
+                    point_frames.floats(Proc::Intel).unwrap(),
+                    vec![frames as f32]
+                );
+                let long = params.get("POINT", "LONG_FRAMES").unwrap();
+                assert_eq!(long.floats(Proc::Intel).unwrap(), vec![frames as f32]);
+                assert_eq!(words("ACTUAL_START_FIELD"), 1);
+                assert_eq!(words("ACTUAL_END_FIELD"), frames);
+                assert_eq!(header_last, 65_535);
+            }
+            // c3dio alone takes the maximum of its (one short) TRIAL count and LONG_FRAMES.
+            let c3d = C3d::load_path(path.clone()).unwrap();
+            assert_eq!(c3d.points.rows(), frames);
+            std::fs::remove_file(&path).unwrap();
+        }
+    }
+
+    /// A file as another writer makes it past 65,535 frames: an integer POINT:FRAMES stuck at
+    /// 65,535, no LONG_FRAMES, and the count only in TRIAL:ACTUAL_*_FIELD (which `c3dio` alone
+    /// reads one frame short).
+    #[test]
+    fn trial_fields_alone_give_the_frame_count() {
+        let frames = 65_536 + 999;
+        let mut t = sample(&["PALM_1"], 3);
+        t.positions = vec![(0..frames)
+            .map(|f| Some(Point::new(f as f64, 0.0, 0.0)))
+            .collect()];
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("vicon.c3d");
+        write_c3d(&path, &t).unwrap();
+        let mut bytes = std::fs::read(&path).unwrap();
+        let ds = u16::from_le_bytes([bytes[16], bytes[17]]) as usize;
+        let params = walk_parameters(&bytes[BLOCK..BLOCK * (ds - 1)], Proc::Intel).unwrap();
+        // LONG_FRAMES renamed out of the way, POINT:FRAMES a float 65,535.
+        let long = params.get("POINT", "LONG_FRAMES").unwrap();
+        // Before the data: offset word, type, dimension count and one dimension.
+        let name_at = BLOCK + long.at - 5 - "LONG_FRAMES".len();
+        assert_eq!(&bytes[name_at..name_at + 11], b"LONG_FRAMES");
+        bytes[name_at..name_at + 11].copy_from_slice(b"XLONG_FRAME");
+        let at = BLOCK + params.get("POINT", "FRAMES").unwrap().at;
+        bytes[at..at + 4].copy_from_slice(&65_535f32.to_le_bytes());
+        let c3d = C3d::from_bytes(&bytes).unwrap();
+        assert_eq!(c3d.points.rows(), frames - 1, "c3dio alone is one short");
+        let back = read_c3d_bytes(&bytes, &no_map(), &path).unwrap();
+        assert_eq!(back.n_frames(), frames);
+        assert_eq!(back.positions, t.positions);
+    }
+
     #[test]
     fn writer_rejects_what_it_cannot_represent() {
         let dir = tempfile::tempdir().unwrap();
@@ -1252,15 +1445,13 @@ mod tests {
         t.labels[0] = "Handrücken".into();
         let e = write_c3d(&path, &t).unwrap_err().to_string();
         assert!(e.contains("'Handrücken'"), "{e}");
-        let t = Trajectories::new(
-            100.0,
-            vec!["A".into()],
-            vec![vec![None; MAX_WRITE_FRAMES + 1]],
-            "x",
-        )
-        .unwrap();
-        let e = write_c3d(&path, &t).unwrap_err().to_string();
-        assert!(e.contains("65536 frames"), "{e}");
+        // Beyond 2^24 a float POINT:FRAMES is not exact (checked on the count alone: a
+        // trajectory that long would take half a gigabyte).
+        let e = check_frame_count(MAX_WRITE_FRAMES + 1).unwrap_err();
+        assert!(e.contains("16777217 frames"), "{e}");
+        assert!(check_frame_count(0).is_err());
+        assert!(check_frame_count(MAX_WRITE_FRAMES).is_ok());
+        assert_eq!(MAX_WRITE_FRAMES as f32 as usize, MAX_WRITE_FRAMES);
         let mut t = sample(&["A"], 3);
         t.positions[0][1] = Some(Point::new(1e300, 0.0, 0.0));
         let e = write_c3d(&path, &t).unwrap_err().to_string();

@@ -2,5 +2,6 @@
 //! marker trajectories every later stage shares.
 
 pub mod c3d;
+pub mod plausibility;
 pub mod subject;
 pub mod trajectories;

@@ -335,6 +335,25 @@ impl Subject {
             }
         })?;
         let traj = read_c3d_bytes(&bytes, &self.labels, &path)?;
+        // A hand's size, whatever the file's POINT:UNITS says, and no marker far off.
+        if let Some(units) = crate::mocap::c3d::point_units(&bytes) {
+            crate::mocap::plausibility::check_hand_scale(&traj, units)?;
+        }
+        if kind == TrialKind::Reference {
+            let found = crate::mocap::plausibility::landmark_chirality(&traj);
+            if let Some(side) = found.filter(|s| *s != self.hand) {
+                return Err(Error::input(
+                    self.toml_path(),
+                    format!(
+                        "hand = \"{}\" but the landmarks of the static trial {} are those of a \
+                         {side} hand (lateral wrist and MCP landmarks against the dorsal WRIST and \
+                         M_MCP markers); fix `hand`",
+                        self.hand,
+                        path.display()
+                    ),
+                ));
+            }
+        }
         if kind != TrialKind::Reference && self.reference_frame >= traj.n_frames() {
             return Err(Error::input(
                 &path,

@@ -68,7 +68,7 @@ pub use weights::{bone_heat_weights, template_weights, HeatOptions, WeightMethod
 use crate::cli::Log;
 use crate::error::{Error, Result};
 use crate::io::{gltf::write_glb, obj::write_obj, Units};
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 /// What [`pose_command`] did.
 #[derive(Clone, Debug)]
@@ -157,6 +157,11 @@ pub fn pose_command_with(
              (tetrahedral mesh)",
         ));
     }
+    crate::io::output_paths::check_output_file(
+        out_file,
+        "--out",
+        &crate::io::output_paths::Inputs::files([PathBuf::from(pose_arg)]).with_model(model_dir),
+    )?;
     let (pose, clamps) = resolve_pose(pose_arg)?;
     let mut warnings: Vec<String> = clamps.iter().map(|c| format!("{pose_arg}: {c}")).collect();
     let hand = IndividualHand::load(model_dir, WeightMethod::default())?;

@@ -613,18 +613,7 @@ pub fn simulate(opts: &SynthOptions) -> Result<SyntheticSubject> {
 /// skin homologous to the template. Everything is written into a temporary sibling folder that replaces `dir` only when
 /// complete. A non-empty `dir` is an error unless `force`.
 pub fn write_subject(dir: &Path, s: &SyntheticSubject, force: bool) -> Result<()> {
-    if dir.exists() {
-        let non_empty = std::fs::read_dir(dir)
-            .map_err(|e| Error::io(dir, e))?
-            .next()
-            .is_some();
-        if non_empty && !force {
-            return Err(Error::input(
-                dir,
-                "output folder exists and is not empty; pass --force to replace it",
-            ));
-        }
-    }
+    check_subject_dir(dir, force)?;
     let parent = dir
         .parent()
         .filter(|p| !p.as_os_str().is_empty())
@@ -646,6 +635,24 @@ pub fn write_subject(dir: &Path, s: &SyntheticSubject, force: bool) -> Result<()
         std::fs::remove_dir_all(dir).map_err(|e| Error::io(dir, e))?;
     }
     std::fs::rename(&tmp, dir).map_err(|e| Error::io(dir, e))
+}
+
+/// Whether [`write_subject`] may write a subject folder at `dir`: a non-empty folder is an
+/// error unless `force`. Commands call it before simulating, so a refusal costs nothing.
+pub fn check_subject_dir(dir: &Path, force: bool) -> Result<()> {
+    if dir.exists() {
+        let non_empty = std::fs::read_dir(dir)
+            .map_err(|e| Error::io(dir, e))?
+            .next()
+            .is_some();
+        if non_empty && !force {
+            return Err(Error::input(
+                dir,
+                "output folder exists and is not empty; pass --force to replace it",
+            ));
+        }
+    }
+    Ok(())
 }
 
 fn write_into(tmp: &Path, s: &SyntheticSubject) -> Result<()> {

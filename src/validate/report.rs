@@ -20,6 +20,7 @@ use super::link_accuracy::{compare, link_lengths, read_joints, read_truth, LinkA
 use super::surface_error::SurfaceError;
 use crate::anatomy::{landmark_names, Side};
 use crate::error::{Error, Result};
+use crate::geometry::TriMesh;
 use crate::io::atomic::write_bytes_atomic;
 use crate::io::{obj, ply, Units};
 use crate::measure::landmarks_on_skin;
@@ -174,6 +175,45 @@ fn read_json(path: &Path) -> Result<serde_json::Value> {
     serde_json::from_str(&text).map_err(|e| Error::input(path, format!("not JSON: {e}")))
 }
 
+/// Largest ratio between the bounding-box diagonals of `reference.ply` and `skin.obj` that a
+/// reference of the same hand can have (a scan cut at another place of the forearm differs by
+/// tens of percent, a wrong unit by 10 to 1000 times).
+pub const REFERENCE_SCALE_RATIO: f64 = 3.0;
+
+/// Check that the reference surface (read as mm) is the size of the reconstructed skin: the
+/// ratio of their bounding-box diagonals within 1/[`REFERENCE_SCALE_RATIO`] to
+/// [`REFERENCE_SCALE_RATIO`], else an error naming `path` and the unit its numbers look like
+/// (the one of m, cm, in, mm that brings the ratio nearest 1).
+pub fn check_reference_scale(reference: &TriMesh, skin: &TriMesh, path: &Path) -> Result<()> {
+    let (r, s) = (reference.diagonal(), skin.diagonal());
+    if !(r > 0.0 && s > 0.0) {
+        return Ok(());
+    }
+    let ratio = r / s;
+    if (1.0 / REFERENCE_SCALE_RATIO..=REFERENCE_SCALE_RATIO).contains(&ratio) {
+        return Ok(());
+    }
+    let likely = [
+        Units::Millimetres,
+        Units::Centimetres,
+        Units::Inches,
+        Units::Metres,
+    ]
+    .into_iter()
+    .min_by(|a, b| {
+        let off = |u: &Units| (ratio * u.to_mm()).ln().abs();
+        off(a).total_cmp(&off(b))
+    })
+    .unwrap_or(Units::Millimetres);
+    Err(Error::input(
+        path,
+        format!(
+            "the surface is {r:.3} mm across (read as mm) where skin.obj is {s:.1} mm; its \
+             numbers look like {likely}: convert it to mm"
+        ),
+    ))
+}
+
 /// Measure the reconstruction in `model` (a `reconstruct` folder) against the subject in
 /// `subject_dir` (with `truth.json` and `reference.ply` when it has them: each is optional,
 /// and what needs a missing one is skipped) and write the report into `report`.
@@ -195,6 +235,22 @@ pub fn validate_subject(
         truth_json: truth_path.exists(),
     };
     let subject = Subject::load(subject_dir)?;
+    let inputs = crate::io::output_paths::Inputs::files(
+        [
+            subject.toml_path(),
+            truth_path.clone(),
+            reference_path.clone(),
+        ]
+        .into_iter()
+        .chain(subject.trials.values().map(|p| subject.dir.join(p))),
+    )
+    .with_model(model);
+    crate::io::output_paths::check_output_dir(
+        report,
+        &["metrics.json", "report.html", "report.md", "error-map.png"],
+        "--report",
+        &inputs,
+    )?;
     let model_path = model.join("link_model.json");
     let joints = read_joints(&model_path)?;
     let truth = if references.truth_json {
@@ -229,7 +285,9 @@ pub fn validate_subject(
     let skin_path = model.join("skin.obj");
     let skin = obj::read_obj(&skin_path, Units::Millimetres)?;
     let reference = if references.reference_ply {
-        Some(ply::read_ply(&reference_path, Units::Millimetres)?.mesh)
+        let r = ply::read_ply(&reference_path, Units::Millimetres)?.mesh;
+        check_reference_scale(&r, &skin, &reference_path)?;
+        Some(r)
     } else {
         None
     };

@@ -1,0 +1,306 @@
+//! Wrong input must never give a confident wrong hand: each case feeds one realistic mistake to
+//! a command and checks the exit status (or `Err`), that the one-line error names the file and
+//! the item, that nothing half-written stays in the output folder, and that no input changed.
+
+use ergohand::io::fingerprint::Fnv1a;
+use ergohand::mocap::c3d::{read_c3d, write_c3d};
+use ergohand::synth::{self, Preset, SynthOptions};
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+use std::sync::OnceLock;
+mod common;
+use common::{ergohand, error_line, stderr};
+
+/// A short simulated right-hand subject, made once; tests copy it.
+fn base() -> &'static Path {
+    static DIR: OnceLock<tempfile::TempDir> = OnceLock::new();
+    DIR.get_or_init(|| {
+        let d = tempfile::tempdir().unwrap();
+        let mut o = SynthOptions::new(21, Preset::Typical);
+        o.duration_s = Some(4.0);
+        o.voxel_mm = 1.0;
+        let s = synth::simulate(&o).unwrap();
+        synth::write_subject(&d.path().join("S"), &s, false).unwrap();
+        d
+    })
+    .path()
+    .join("S")
+    .leak()
+}
+
+/// A copy of the base subject at `dir/name`.
+fn subject_copy(dir: &Path, name: &str) -> PathBuf {
+    let to = dir.join(name);
+    copy_tree(base(), &to);
+    to
+}
+
+fn copy_tree(from: &Path, to: &Path) {
+    std::fs::create_dir_all(to).unwrap();
+    for e in std::fs::read_dir(from).unwrap() {
+        let e = e.unwrap();
+        let t = to.join(e.file_name());
+        if e.path().is_dir() {
+            copy_tree(&e.path(), &t);
+        } else {
+            std::fs::copy(e.path(), t).unwrap();
+        }
+    }
+}
+
+/// Every file under `dir` with the FNV-1a hash of its bytes.
+fn tree_hash(dir: &Path) -> BTreeMap<PathBuf, u64> {
+    let mut out = BTreeMap::new();
+    let mut stack = vec![dir.to_path_buf()];
+    while let Some(d) = stack.pop() {
+        for e in std::fs::read_dir(&d).unwrap() {
+            let p = e.unwrap().path();
+            if p.is_dir() {
+                stack.push(p);
+            } else {
+                let mut h = Fnv1a::default();
+                h.update(&std::fs::read(&p).unwrap());
+                out.insert(p, h.finish());
+            }
+        }
+    }
+    out
+}
+
+/// Nothing at `out`, or an empty folder.
+fn nothing_written(out: &Path) -> bool {
+    !out.exists() || std::fs::read_dir(out).unwrap().next().is_none()
+}
+
+/// `reconstruct S --out OUT` must fail with a line naming every one of `names`, write nothing
+/// and change no input.
+fn reconstruct_refuses(subject: &Path, names: &[&str]) -> String {
+    let out = subject.parent().unwrap().join("out");
+    let before = tree_hash(subject);
+    let o = ergohand(&[
+        "reconstruct",
+        subject.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "-q",
+    ]);
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    let line = error_line(&o);
+    for n in names {
+        assert!(line.contains(n), "'{n}' not in: {line}");
+    }
+    assert!(nothing_written(&out));
+    assert_eq!(tree_hash(subject), before, "an input changed");
+    line
+}
+
+/// Replace the `POINT:UNITS` text "mm" of a C3D file written here by `units` (same length).
+fn set_point_units(path: &Path, units: &[u8; 2]) {
+    let mut b = std::fs::read(path).unwrap();
+    let at = b.windows(5).position(|w| w == b"UNITS").unwrap();
+    let mm = at + b[at..].windows(2).position(|w| w == b"mm").unwrap();
+    b[mm..mm + 2].copy_from_slice(units);
+    std::fs::write(path, b).unwrap();
+}
+
+#[test]
+fn trial_in_mm_labelled_metres_is_refused_naming_file_and_units() {
+    let d = tempfile::tempdir().unwrap();
+    let s = subject_copy(d.path(), "S");
+    set_point_units(&s.join("trials/index.c3d"), b"m ");
+    let line = reconstruct_refuses(&s, &["index.c3d", "POINT:UNITS", "'m'", "like mm"]);
+    assert!(!line.contains('\n'));
+}
+
+#[test]
+fn declared_hand_against_the_landmarks_is_refused() {
+    let d = tempfile::tempdir().unwrap();
+    let s = subject_copy(d.path(), "S");
+    let toml = s.join("subject.toml");
+    let text = std::fs::read_to_string(&toml).unwrap();
+    assert!(text.contains("hand = \"right\""));
+    std::fs::write(&toml, text.replace("hand = \"right\"", "hand = \"left\"")).unwrap();
+    reconstruct_refuses(&s, &["subject.toml", "hand", "right hand"]);
+}
+
+#[test]
+fn a_landmark_metres_off_is_named() {
+    let d = tempfile::tempdir().unwrap();
+    let s = subject_copy(d.path(), "S");
+    let path = s.join("trials/reference.c3d");
+    let mut t = read_c3d(&path, &BTreeMap::new()).unwrap();
+    let m = t.index_of("I_NAIL").unwrap();
+    for p in t.positions[m].iter_mut().flatten() {
+        p.x += 5000.0;
+    }
+    write_c3d(&path, &t).unwrap();
+    reconstruct_refuses(&s, &["reference.c3d", "I_NAIL"]);
+}
+
+/// One sample of 1e8 mm is dropped and counted, and the link model is the one without it.
+#[test]
+fn a_single_absurd_sample_is_dropped_with_a_warning() {
+    let d = tempfile::tempdir().unwrap();
+    let s = subject_copy(d.path(), "S");
+    let path = s.join("trials/index.c3d");
+    let mut t = read_c3d(&path, &BTreeMap::new()).unwrap();
+    let m = t.index_of("I_PROX_1").unwrap();
+    let f = t.positions[m].iter().position(Option::is_some).unwrap() + 50;
+    let clean =
+        ergohand::link::estimate_link_model(&ergohand::mocap::subject::Subject::load(&s).unwrap())
+            .unwrap();
+    let was = t.positions[m][f];
+    t.positions[m][f] = Some(ergohand::geometry::Point::new(1e8, 0.0, 0.0));
+    write_c3d(&path, &t).unwrap();
+    let subject = ergohand::mocap::subject::Subject::load(&s).unwrap();
+    let model = ergohand::link::estimate_link_model(&subject).unwrap();
+    let w = model
+        .warnings
+        .iter()
+        .find(|w| w.contains("I_PROX_1"))
+        .expect("a warning names the marker");
+    assert!(w.contains("index.c3d") && w.contains("1 samples"), "{w}");
+    // Dropped, it moves no joint centre by more than a fraction of a millimetre (one frame
+    // of hundreds; undropped, a 1e8 mm sample would wreck the registration of its frame).
+    assert!(was.is_some());
+    for (a, b) in clean.joints.iter().zip(&model.joints) {
+        let dist = (a.centre - b.centre).norm();
+        assert!(dist < 0.5, "{} moved {dist} mm", a.joint);
+    }
+}
+
+#[test]
+fn pose_out_onto_the_models_own_skin_is_refused_before_any_work() {
+    let d = tempfile::tempdir().unwrap();
+    let model = d.path().join("OUT");
+    std::fs::create_dir_all(&model).unwrap();
+    // Not a real model: the refusal must come before anything is read.
+    std::fs::write(model.join("skin.obj"), "v 0 0 0\n").unwrap();
+    let before = tree_hash(&model);
+    let target = model.join("skin.obj");
+    let o = ergohand(&[
+        "pose",
+        model.to_str().unwrap(),
+        "--pose",
+        "fist",
+        "--out",
+        target.to_str().unwrap(),
+    ]);
+    assert_eq!(o.status.code(), Some(1));
+    let line = error_line(&o);
+    assert!(
+        line.contains("skin.obj") && line.contains("--out"),
+        "{line}"
+    );
+    assert_eq!(tree_hash(&model), before);
+}
+
+#[test]
+fn grasp_out_naming_a_file_is_refused_before_any_work() {
+    let d = tempfile::tempdir().unwrap();
+    let file = d.path().join("results.txt");
+    std::fs::write(&file, "keep me").unwrap();
+    let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/bottle.toml");
+    let o = ergohand(&[
+        "grasp",
+        scene.to_str().unwrap(),
+        "--out",
+        file.to_str().unwrap(),
+    ]);
+    assert_eq!(o.status.code(), Some(1));
+    let line = error_line(&o);
+    assert!(
+        line.contains("results.txt") && line.contains("--out"),
+        "{line}"
+    );
+    assert!(
+        !line.contains("grasp.json"),
+        "refused as a folder, not when writing"
+    );
+    assert_eq!(std::fs::read_to_string(&file).unwrap(), "keep me");
+}
+
+/// Batch: a huge --jobs finishes (lowered, with a warning); a stale temporary file of a killed
+/// run is removed; a subject replaced with preserved timestamps is redone; and the same model,
+/// validated against a reference written in metres, is refused naming the file and the unit.
+#[test]
+fn batch_reruns_by_content_clamps_jobs_and_cleans_up() {
+    let d = tempfile::tempdir().unwrap();
+    let subjects = d.path().join("subjects");
+    let out = d.path().join("out");
+    let s = subject_copy(&subjects, "A");
+    let (sd, od) = (subjects.to_str().unwrap(), out.to_str().unwrap());
+    let o = ergohand(&["batch", sd, "--out", od, "--jobs", "100000"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("--jobs 100000 lowered to 1"),
+        "{}",
+        stderr(&o)
+    );
+
+    // A temporary file a killed run left an hour ago, and a replaced trial whose times are
+    // kept (`cp -p`): one sample moved by 1 mm.
+    let stale = out.join("A/.tet.vtk.999.0.1.tmp");
+    std::fs::write(&stale, "half").unwrap();
+    let hour_ago = std::time::SystemTime::now() - std::time::Duration::from_secs(3600);
+    let set_mtime = |p: &Path, t| {
+        std::fs::File::options()
+            .write(true)
+            .open(p)
+            .unwrap()
+            .set_modified(t)
+            .unwrap()
+    };
+    set_mtime(&stale, hour_ago);
+    let trial = s.join("trials/ring.c3d");
+    let mtime = std::fs::metadata(&trial).unwrap().modified().unwrap();
+    let mut t = read_c3d(&trial, &BTreeMap::new()).unwrap();
+    let sample = t.positions[0].iter_mut().flatten().nth(10).unwrap();
+    sample.x += 1.0;
+    write_c3d(&trial, &t).unwrap();
+    set_mtime(&trial, mtime);
+
+    let o = ergohand(&["batch", sd, "--out", od]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let summary: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("batch-summary.json")).unwrap())
+            .unwrap();
+    assert_eq!(
+        summary["subjects"][0]["status"], "ok",
+        "redone, not skipped"
+    );
+    assert!(!stale.exists());
+    assert!(stderr(&o).contains("removed 1 temporary"), "{}", stderr(&o));
+    // A third run skips it.
+    let o = ergohand(&["batch", sd, "--out", od, "-q"]);
+    assert!(o.status.success());
+    let summary: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("batch-summary.json")).unwrap())
+            .unwrap();
+    assert_eq!(summary["subjects"][0]["status"], "skipped-up-to-date");
+
+    // reference.ply exported in metres.
+    let reference = s.join("reference.ply");
+    let mesh = ergohand::io::ply::read_ply(&reference, ergohand::io::Units::Millimetres)
+        .unwrap()
+        .mesh;
+    ergohand::io::ply::write_ply(&reference, &mesh, ergohand::io::Units::Metres, None).unwrap();
+    let before = tree_hash(&s);
+    let report = d.path().join("report");
+    let o = ergohand(&[
+        "validate",
+        s.to_str().unwrap(),
+        "--model",
+        out.join("A").to_str().unwrap(),
+        "--report",
+        report.to_str().unwrap(),
+    ]);
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    let line = error_line(&o);
+    assert!(
+        line.contains("reference.ply") && line.contains("look like m"),
+        "{line}"
+    );
+    assert!(nothing_written(&report));
+    assert_eq!(tree_hash(&s), before);
+}
