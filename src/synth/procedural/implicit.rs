@@ -208,7 +208,7 @@ pub struct HandField {
 /// (and the thumb) into the palm.
 const K_CORE: f64 = 9.0;
 const K_THUMB_BASE: f64 = 7.0;
-const K_DIGIT: f64 = 2.5;
+const K_DIGIT: f64 = 1.5;
 const K_FINGER: f64 = 5.0;
 const K_THUMB: f64 = 7.0;
 
@@ -312,7 +312,10 @@ pub fn build_field(
         .collect();
     let pt = p.palm_thickness;
     let y_heads = sk.centre(Joint::MMcp).y;
-    let mut distal: Vec<(f64, f64)> = heads.iter().map(|c| (c.x, c.y + 3.0)).collect();
+    // The slab ends a rounding radius beyond the heads, so that its rounded end does not narrow
+    // the palm across the heads (the hand breadth).
+    let end_round = 0.35 * pt;
+    let mut distal: Vec<(f64, f64)> = heads.iter().map(|c| (c.x, c.y + end_round)).collect();
     distal.sort_by(|a, b| a.0.total_cmp(&b.0));
     core.push(Solid {
         to_local: palm_tf.inverse(),
@@ -323,7 +326,7 @@ pub fn build_field(
             y_start: -6.0,
             distal,
             arch: 0.0035 * 90.0 / hb,
-            end_round: 0.4 * pt,
+            end_round,
         }),
     });
     // Hypothenar eminence: ulnar, palmar, over the 5th metacarpal's proximal two thirds.

@@ -288,8 +288,10 @@ mod tests {
         let tips = posed_tips(sk, &link_transforms(sk, &fist));
         // Flexion about an axis perpendicular to the finger would keep the tip in the plane of
         // the finger and the dorsal axis; the tilt moves it sideways, toward the scaphoid.
+        // (The index points straight away from the scaphoid, so only its plane is defined: it is
+        // left out.)
         let dorsal = sk.joint(Joint::Wrist).y();
-        for f in &Finger::ALL[1..] {
+        for f in &Finger::ALL[2..] {
             let mcp = sk.centre(f.joints()[0]);
             let along = (sk.tips[*f as usize] - mcp).normalize();
             let toward = b.neutral.scaphoid - mcp;

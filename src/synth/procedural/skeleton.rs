@@ -17,7 +17,7 @@
 //!   axis relative to the fingers (its nail faces radially, a little palmar);
 //! * 1-DOF axes (PIP, DIP, thumb MCP and IP) tilted 2-7° from the perpendicular to the bone so
 //!   that a flexing finger turns toward the scaphoid (the convergence of flexed fingers), plus a
-//!   random 0-2° twist, so no two axes are parallel.
+//!   random twist of up to 1°, so no two axes are parallel.
 
 use super::proportions::Proportions;
 use crate::anatomy::{Finger, Joint, Side};
@@ -141,7 +141,7 @@ pub fn build_skeleton(p: &Proportions, rng: &mut Rng) -> crate::Result<BodySkele
                 Finger::Little => rng.range(4.0, 7.0),
             }
             .to_radians();
-            let twist = rng.range(-2.0, 2.0).to_radians();
+            let twist = rng.range(-1.0, 1.0).to_radians();
             let toward = scaphoid - sk.centre(j);
             let lateral = toward - z * toward.dot(&z) - y * toward.dot(&y);
             let pick = |sign: f64| {
