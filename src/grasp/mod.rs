@@ -547,7 +547,6 @@ pub const OUTPUT_FILES: [&str; 3] = ["grasp.json", "grasp.glb", "contact_map.png
 /// overrides the scene's `hand.model`; neither: the template), check the output folder (see
 /// [`crate::io::output_paths`]), close the hand on the part, measure, and write `grasp.json`,
 /// `grasp.glb` and `contact_map.png` into `out`.
-
 pub fn grasp_command(
     scene: &Path,
     model: Option<&Path>,
