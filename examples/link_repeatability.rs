@@ -28,7 +28,7 @@ use ergohand::anatomy::{Finger, Joint, Side};
 use ergohand::link::model::{estimate_link_model_from, LinkModel};
 use ergohand::mocap::trajectories::Trajectories;
 use ergohand::rng::Rng;
-use ergohand::synth::capture::{simulate_trial, ErrorModel, MarkerDef};
+use ergohand::synth::capture::{simulate_trial, ErrorModel, MarkerDef, Recording};
 use ergohand::synth::motion::{MotionVariation, Trial};
 use ergohand::synth::{simulate, Preset, SynthOptions, SyntheticSubject, FRAME_RATE};
 use nalgebra::{Isometry3, Point3};
@@ -278,8 +278,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                     frames,
                     FRAME_RATE,
                     err,
-                    &var,
-                    &Isometry3::identity(),
+                    &Recording {
+                        var,
+                        ..Recording::nominal()
+                    },
                     &Isometry3::identity(),
                     rng,
                 )

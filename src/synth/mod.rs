@@ -20,6 +20,7 @@ pub mod voxel_scan;
 
 use crate::anatomy::{landmark_names, palm_markers, Dimension, Finger, Joint, Link, Side};
 use crate::error::{Error, Result};
+use crate::geometry::closest_point::AabbTree;
 use crate::geometry::{Point, TriMesh, Vec3};
 use crate::mocap::c3d::write_c3d;
 use crate::mocap::subject::Subject;
@@ -28,7 +29,10 @@ use crate::rng::Rng;
 use crate::skeleton::record::{joint_records, JointRecord};
 use crate::skeleton::{Pose, Skeleton};
 use crate::template::{load_template, TemplateHand};
-use capture::{plate_markers, simulate_trial, ErrorModel, MarkerDef};
+use capture::{
+    forearm_markers, palm_sta, placed_landmark, plate_markers, seating, simulate_trial, ErrorModel,
+    MarkerDef, Recording,
+};
 use motion::{MotionVariation, Trial};
 use nalgebra::{Isometry3, Matrix3, Rotation3, Translation3, UnitQuaternion};
 use serde::{Deserialize, Serialize};
@@ -41,13 +45,15 @@ pub use true_hand::TrueHand;
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum Preset {
-    /// 0.2 mm noise, 1-3 mm soft-tissue artefact, 3 % gaps, full ranges of motion.
+    /// 0.2 mm noise, 1-3 mm and 0.3-1° plate artefact, 0.4-1 mm skin marker slide, 3 % gaps,
+    /// seated postures 0.75° off the static one, landmarks placed 1 mm off, full ranges of motion.
     Typical,
     /// As typical with half the ranges of motion.
     SmallRom,
-    /// Double noise, artefact and gaps.
+    /// Double every error of typical (the drift excepted).
     Noisy,
-    /// No error at all (for exactness tests); the hand still drifts, as it is not clamped.
+    /// No error at all (for exactness tests); the hand still drifts, as it is not clamped, and
+    /// the labels are still shuffled (no error: readers go by label).
     Clean,
 }
 
@@ -75,9 +81,15 @@ impl Preset {
         let typical = ErrorModel {
             noise_mm: 0.2,
             plate_sta_mm: (1.0, 3.0),
+            plate_spin_deg: (0.3, 1.0),
+            palm_sta_mm: (0.4, 1.0),
             skin_sta_mm: (0.3, 1.0),
             gap_fraction: 0.03,
+            seat: (5.0, 3.0),
             drift: (3.0, 2.0),
+            seated_posture_sd_deg: 0.75,
+            landmark_sd_mm: 1.0,
+            shuffle_labels: true,
             rom: 1.0,
         };
         match self {
@@ -89,15 +101,25 @@ impl Preset {
             Preset::Noisy => ErrorModel {
                 noise_mm: 0.4,
                 plate_sta_mm: (2.0, 6.0),
+                plate_spin_deg: (0.6, 2.0),
+                palm_sta_mm: (0.8, 2.0),
                 skin_sta_mm: (0.6, 2.0),
                 gap_fraction: 0.06,
+                seat: (10.0, 6.0),
+                seated_posture_sd_deg: 1.5,
+                landmark_sd_mm: 2.0,
                 ..typical
             },
             Preset::Clean => ErrorModel {
                 noise_mm: 0.0,
                 plate_sta_mm: (0.0, 0.0),
+                plate_spin_deg: (0.0, 0.0),
+                palm_sta_mm: (0.0, 0.0),
                 skin_sta_mm: (0.0, 0.0),
                 gap_fraction: 0.0,
+                seat: (0.0, 0.0),
+                seated_posture_sd_deg: 0.0,
+                landmark_sd_mm: 0.0,
                 ..typical
             },
         }
@@ -304,6 +326,9 @@ pub struct SyntheticSubject {
     pub true_skeleton: Skeleton,
     /// Marker definitions per trial key (for exactness tests).
     pub markers: BTreeMap<String, Vec<MarkerDef>>,
+    /// How each calibration trial's recording departed from the protocol and the static trial
+    /// (seating, seated posture, motion), per trial key (for tests).
+    pub recordings: BTreeMap<String, Recording>,
     /// The CT-like reference surface, lab frame.
     pub reference: TriMesh,
 }
@@ -342,8 +367,15 @@ fn draw_posture(rng: &mut Rng, posture: Posture) -> Pose {
     pose
 }
 
-/// Simulate a subject.
+/// Simulate a subject with its preset's error model.
 pub fn simulate(opts: &SynthOptions) -> Result<SyntheticSubject> {
+    simulate_with(opts, &opts.preset.error_model())
+}
+
+/// Simulate a subject with the error model `err` instead of its preset's (to study one error
+/// source at a time; `truth.json` still names the preset).
+pub fn simulate_with(opts: &SynthOptions, err: &ErrorModel) -> Result<SyntheticSubject> {
+    let err = *err;
     if !(0.05..=2.0).contains(&opts.voxel_mm) {
         return Err(Error::invalid(format!(
             "voxel size {} mm is outside 0.05-2 mm",
@@ -359,7 +391,6 @@ pub fn simulate(opts: &SynthOptions) -> Result<SyntheticSubject> {
     }
     let root = Rng::new(opts.seed);
     let template: TemplateHand = load_template(opts.hand)?;
-    let err = opts.preset.error_model();
 
     // 1. The true hand in its reference posture.
     let posture = draw_posture(&mut root.fork("posture"), opts.posture);
@@ -419,41 +450,61 @@ pub fn simulate(opts: &SynthOptions) -> Result<SyntheticSubject> {
         synth: opts.clone(),
     };
 
-    // 5. Markers, in the reference posture (lab frame): landmarks on the skin at the marker
-    // offset along the normal; plates on the links of each finger; forearm markers.
-    let landmark_at = |name: &str| -> Point {
-        let (p, n) = hand.landmarks[name];
-        p + n * opts.marker_offset_mm
+    // 5. Markers, in the reference posture (lab frame): landmarks placed by the lab near their
+    // anatomical points, at the marker offset along the skin's normal; plates on the links of
+    // each finger; forearm markers. What the lab attaches (landmark placement, palm slide) is
+    // drawn once per session; a repeated session attaches everything again.
+    let session = |name: &str| {
+        if opts.repeat == 0 {
+            root.fork(name)
+        } else {
+            root.fork(&format!("{name}-repeat-{}", opts.repeat))
+        }
     };
-    let mut sta_rng = root.fork("sta");
+    let skin_tree = AabbTree::new(&true_skin);
+    let skin_normals = true_skin.vertex_normals();
+    let mut place_rng = session("landmark-placement");
+    let placed: BTreeMap<&str, Point> = landmark_names()
+        .into_iter()
+        .map(|name| {
+            let (p, n) = hand.landmarks[name];
+            let q = placed_landmark(
+                &skin_tree,
+                &skin_normals,
+                &p,
+                &n,
+                opts.marker_offset_mm,
+                err.landmark_sd_mm,
+                &mut place_rng,
+            );
+            (name, q)
+        })
+        .collect();
+    let mut palm_rng = session("palm-sta");
     let palm_defs: Vec<MarkerDef> = palm_markers()
         .iter()
         .map(|&name| MarkerDef {
             name: name.to_string(),
             link: Link::Palm,
-            position: landmark_at(name),
-            sta: vec![],
+            position: placed[name],
+            sta: palm_sta(
+                name,
+                &hand.landmarks[name].1,
+                &mut palm_rng,
+                err.palm_sta_mm,
+            ),
+            sta_centre: placed[name],
         })
         .collect();
     let wrist = true_skeleton.joint(Joint::Wrist);
-    let arm_defs: Vec<MarkerDef> = [(-45.0, 0.0), (-80.0, 0.0), (-60.0, 1.0)]
-        .iter()
-        .enumerate()
-        .map(|(k, &(along, side))| {
-            let radial = wrist.x() * if opts.hand == Side::Right { 1.0 } else { -1.0 };
-            let position = wrist.centre
-                + wrist.z() * along
-                + wrist.y() * (22.0 + opts.marker_offset_mm)
-                + radial * (18.0 * side);
-            let dir = sta_rng.unit_vector() * sta_rng.range(err.skin_sta_mm.0, err.skin_sta_mm.1);
-            MarkerDef {
-                name: format!("ARM_{}", k + 1),
-                link: Link::Arm,
-                position,
-                sta: vec![(dir, Joint::Wrist, 60.0)],
-            }
-        })
-        .collect();
+    let arm_defs = forearm_markers(
+        &true_skin,
+        wrist,
+        opts.hand,
+        opts.marker_offset_mm,
+        &mut root.fork("sta"),
+        err.skin_sta_mm,
+    );
 
     let durations: Vec<f64> = {
         let mut r = root.fork("durations");
@@ -463,6 +514,7 @@ pub fn simulate(opts: &SynthOptions) -> Result<SyntheticSubject> {
     };
     let mut trials = BTreeMap::new();
     let mut markers = BTreeMap::new();
+    let mut recordings = BTreeMap::new();
     let trial_list: Vec<(String, Trial)> = std::iter::once(("wrist".to_string(), Trial::Wrist))
         .chain(
             Finger::ALL
@@ -479,21 +531,7 @@ pub fn simulate(opts: &SynthOptions) -> Result<SyntheticSubject> {
         } else {
             root.fork(&format!("trial-{key}-repeat-{}", opts.repeat))
         };
-        let mut defs: Vec<MarkerDef> = palm_defs
-            .iter()
-            .map(|d| {
-                let mut d = d.clone();
-                // Skin over the metacarpal heads slides as the MCPs flex, and the dorsal skin of
-                // the wrist as the wrist flexes.
-                let driver = match trial {
-                    Trial::Finger(f) => f.joints()[0],
-                    Trial::Wrist => Joint::Wrist,
-                };
-                let dir = trng.unit_vector() * trng.range(err.skin_sta_mm.0, err.skin_sta_mm.1);
-                d.sta = vec![(dir, driver, 80.0)];
-                d
-            })
-            .collect();
+        let mut defs: Vec<MarkerDef> = palm_defs.clone();
         match trial {
             Trial::Wrist => defs.extend(arm_defs.iter().cloned()),
             Trial::Finger(f) => {
@@ -503,7 +541,7 @@ pub fn simulate(opts: &SynthOptions) -> Result<SyntheticSubject> {
                         &true_skeleton,
                         link,
                         &mut trng,
-                        err.plate_sta_mm,
+                        &err,
                     ));
                 }
             }
@@ -520,12 +558,13 @@ pub fn simulate(opts: &SynthOptions) -> Result<SyntheticSubject> {
             let var = MotionVariation::draw(&mut take_rng.fork("motion"));
             (&mut take_rng, var)
         };
-        let seat = if opts.preset == Preset::Clean {
-            ident
-        } else {
-            let q = UnitQuaternion::from_scaled_axis(rng.gauss3(1f64.to_radians()));
-            let c = wrist.centre.coords;
-            Isometry3::from_parts(Translation3::from(c - q * c + rng.gauss3(1.5)), q)
+        let rec = Recording {
+            var,
+            seat: seating(rng, err.seat, &wrist.centre),
+            seated_deg: motion::seated_posture(
+                &mut rng.fork("seated-posture"),
+                err.seated_posture_sd_deg,
+            ),
         };
         let positions = simulate_trial(
             *trial,
@@ -534,20 +573,23 @@ pub fn simulate(opts: &SynthOptions) -> Result<SyntheticSubject> {
             n,
             FRAME_RATE,
             &err,
-            &var,
-            &seat,
+            &rec,
             &ident,
             rng,
         );
-        trials.insert(
-            key.clone(),
-            Trajectories {
-                frame_rate: FRAME_RATE,
-                labels: defs.iter().map(|d| d.name.clone()).collect(),
-                positions,
-                source: PathBuf::from(format!("trials/{key}.c3d")),
-            },
-        );
+        let traj = Trajectories {
+            frame_rate: FRAME_RATE,
+            labels: defs.iter().map(|d| d.name.clone()).collect(),
+            positions,
+            source: PathBuf::from(format!("trials/{key}.c3d")),
+        };
+        let traj = if err.shuffle_labels {
+            shuffled(traj, &mut rng.fork("label-order"))
+        } else {
+            traj
+        };
+        trials.insert(key.clone(), traj);
+        recordings.insert(key.clone(), rec);
         markers.insert(key.clone(), defs);
     }
 
@@ -563,21 +605,24 @@ pub fn simulate(opts: &SynthOptions) -> Result<SyntheticSubject> {
     let positions = names
         .iter()
         .map(|n| {
-            let p = landmark_at(n);
+            let p = placed[n];
             (0..REFERENCE_FRAMES)
                 .map(|_| Some(p + ref_rng.gauss3(err.noise_mm)))
                 .collect()
         })
         .collect();
-    trials.insert(
-        "reference".into(),
-        Trajectories {
-            frame_rate: FRAME_RATE,
-            labels: names.iter().map(|s| s.to_string()).collect(),
-            positions,
-            source: PathBuf::from("trials/reference.c3d"),
-        },
-    );
+    let reference = Trajectories {
+        frame_rate: FRAME_RATE,
+        labels: names.iter().map(|s| s.to_string()).collect(),
+        positions,
+        source: PathBuf::from("trials/reference.c3d"),
+    };
+    let reference = if err.shuffle_labels {
+        shuffled(reference, &mut ref_rng.fork("label-order"))
+    } else {
+        reference
+    };
+    trials.insert("reference".into(), reference);
 
     // 6. The CT-like reference surface.
     let reference = voxel_scan::ct_surface(&true_skin, opts.voxel_mm)?;
@@ -604,8 +649,19 @@ pub fn simulate(opts: &SynthOptions) -> Result<SyntheticSubject> {
         skin_homologous: hand.homologous_to_template,
         true_skeleton,
         markers,
+        recordings,
         reference,
     })
+}
+
+/// `t` with its markers (labels and tracks together) in a random order (Fisher-Yates).
+fn shuffled(mut t: Trajectories, rng: &mut Rng) -> Trajectories {
+    for i in (1..t.labels.len()).rev() {
+        let j = rng.below(i + 1);
+        t.labels.swap(i, j);
+        t.positions.swap(i, j);
+    }
+    t
 }
 
 /// Write a simulated subject folder at `dir`: `subject.toml`, `trials/*.c3d`, `reference.ply`,
@@ -881,8 +937,8 @@ mod tests {
         out
     }
 
-    /// A marker's placement and soft-tissue slide.
-    type Plate = (Point, Vec<(Vec3, Joint, f64)>);
+    /// A marker's placement and soft-tissue artefact.
+    type Plate = (Point, Vec<capture::StaDriver>);
 
     /// A repeated recording keeps the session's plates, soft-tissue slide, static trial and
     /// truth and records every motion anew; a new session re-attaches the plates.
@@ -922,6 +978,329 @@ mod tests {
         let json = |s: &SyntheticSubject| serde_json::to_string(&s.truth).unwrap();
         assert!(!json(&a).contains("trial_repeat"));
         assert!(json(&c).contains("\"trial_repeat\":2"));
+    }
+
+    /// The clean model with one error switched on by `f`, and no drift (so the link transforms
+    /// are those of the posture alone) and the labels in order.
+    fn clean_but(f: impl FnOnce(&mut ErrorModel)) -> ErrorModel {
+        let mut e = Preset::Clean.error_model();
+        e.drift = (0.0, 0.0);
+        e.shuffle_labels = false;
+        f(&mut e);
+        e
+    }
+
+    /// True link transforms at frame `f` of a trial: the protocol's nominal angles plus the
+    /// recording's seated posture, from the skeleton's forward kinematics.
+    fn true_transforms(s: &SyntheticSubject, key: &str, f: usize) -> Vec<Isometry3<f64>> {
+        let trial = if key == "wrist" {
+            Trial::Wrist
+        } else {
+            Trial::Finger(*Finger::ALL.iter().find(|x| x.trial_name() == key).unwrap())
+        };
+        let t = &s.trials[key];
+        let rec = &s.recordings[key];
+        let duration = t.n_frames() as f64 / FRAME_RATE;
+        let mut angles = rec.seated_deg.clone();
+        for (j, a) in motion::trial_angles(trial, f as f64 / FRAME_RATE, duration, 1.0) {
+            for d in 0..3 {
+                angles[j.index()][d] += a[d];
+            }
+        }
+        let mut pose = Pose::zero();
+        for (j, a) in Joint::ALL.iter().zip(&angles) {
+            pose = pose.with_deg(*j, *a);
+        }
+        crate::skeleton::forward_kinematics::link_transforms(&s.true_skeleton, &pose)
+    }
+
+    fn angles_of(s: &SyntheticSubject, key: &str, f: usize) -> Vec<[f64; 3]> {
+        let trial = if key == "wrist" {
+            Trial::Wrist
+        } else {
+            Trial::Finger(*Finger::ALL.iter().find(|x| x.trial_name() == key).unwrap())
+        };
+        let duration = s.trials[key].n_frames() as f64 / FRAME_RATE;
+        let mut angles = vec![[0.0; 3]; Joint::ALL.len()];
+        for (j, a) in motion::trial_angles(trial, f as f64 / FRAME_RATE, duration, 1.0) {
+            angles[j.index()] = a;
+        }
+        angles
+    }
+
+    #[test]
+    fn palm_markers_slide_with_their_own_mcp_and_the_wrist() {
+        let err = clean_but(|e| e.palm_sta_mm = (0.4, 1.0));
+        let s = simulate_with(&short(31, Preset::Clean), &err).unwrap();
+        let defs = &s.markers["index"];
+        let palm: Vec<&MarkerDef> = defs.iter().filter(|d| d.link == Link::Palm).collect();
+        assert_eq!(palm.len(), 4);
+        // Drawn: 0.4-1 mm in all over the joints' ranges; the heads mostly by their MCP.
+        for d in &palm {
+            let total: f64 = d.sta.iter().map(|x| x.slide.norm()).sum();
+            assert!((0.4..=1.0).contains(&total), "{}: {total}", d.name);
+            let mcp = d.sta.iter().find(|x| x.joint != Joint::Wrist).unwrap();
+            let share = mcp.slide.norm() / total;
+            let head = d.name == "PALM_1" || d.name == "PALM_2";
+            assert!(if head { share >= 0.5 } else { share <= 0.3 }, "{}", d.name);
+        }
+        // Independent directions per marker.
+        for (a, b) in palm.iter().zip(palm.iter().skip(1)) {
+            let cos = a.sta[0].slide.normalize().dot(&b.sta[0].slide.normalize());
+            assert!(cos.abs() < 0.999, "{} {}", a.name, b.name);
+        }
+        // On the data: each palm marker, seen from the true palm, is displaced by its drawn
+        // slides times the protocol's angles; a marker whose drivers do not move stays put.
+        for key in ["index", "little", "wrist"] {
+            let t = &s.trials[key];
+            let mut moved = BTreeMap::new();
+            for f in (0..t.n_frames()).step_by(5) {
+                let tf = true_transforms(&s, key, f);
+                let angles = angles_of(&s, key, f);
+                for d in &palm {
+                    let seen = tf[Link::Palm.index()].inverse() * t.get(&d.name, f).unwrap();
+                    let want: Vec3 = d
+                        .sta
+                        .iter()
+                        .map(|x| x.slide * angles[x.joint.index()][x.dof] / x.range_deg)
+                        .sum();
+                    let got = seen - d.position;
+                    assert!((got - want).norm() < 1e-9, "{key} {} frame {f}", d.name);
+                    let m: &mut f64 = moved.entry(d.name.clone()).or_default();
+                    *m = m.max(got.norm());
+                }
+            }
+            let still: &[&str] = match key {
+                "index" => &["PALM_2", "PALM_4"],
+                "little" => &["PALM_1", "PALM_3"],
+                _ => &[],
+            };
+            for (name, m) in &moved {
+                if still.contains(&name.as_str()) {
+                    assert!(*m < 1e-12, "{key} {name} {m}");
+                } else {
+                    assert!(*m > 0.01, "{key} {name} {m}");
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn plates_turn_as_rigid_clusters_about_their_centres() {
+        let err = clean_but(|e| e.plate_spin_deg = (0.3, 1.0));
+        let s = simulate_with(&short(32, Preset::Clean), &err).unwrap();
+        let t = &s.trials["index"];
+        let mut max_angle: f64 = 0.0;
+        for link in Finger::Index.links() {
+            let defs: Vec<&MarkerDef> = s.markers["index"]
+                .iter()
+                .filter(|d| d.link == link)
+                .collect();
+            let drawn: f64 = defs[0].sta.iter().map(|x| x.spin.norm()).sum();
+            assert!((0.3..=1.0).contains(&drawn.to_degrees()), "{link}: {drawn}");
+            for f in (0..t.n_frames()).step_by(9) {
+                let tf = true_transforms(&s, "index", f)[link.index()];
+                let rigid: Vec<Point> = defs.iter().map(|d| tf * d.position).collect();
+                let seen: Vec<Point> = defs.iter().map(|d| t.get(&d.name, f).unwrap()).collect();
+                let reg = absolute_orientation(&rigid, &seen, None, false).unwrap();
+                assert!(reg.rms < 1e-9, "{link} frame {f}: not rigid, {}", reg.rms);
+                // The centre stays where the link puts it; the angle is the drawn spin's.
+                let c = tf * defs[0].sta_centre;
+                assert!((reg.apply(&c) - c).norm() < 1e-6, "{link} frame {f}");
+                let angles = angles_of(&s, "index", f);
+                let want: Vec3 = defs[0]
+                    .sta
+                    .iter()
+                    .map(|x| x.spin * angles[x.joint.index()][x.dof] / x.range_deg)
+                    .sum();
+                let got = reg.rotation.angle();
+                assert!((got - want.norm()).abs() < 1e-6, "{link} frame {f}");
+                max_angle = max_angle.max(got.to_degrees());
+            }
+        }
+        assert!(max_angle > 0.2, "{max_angle}");
+    }
+
+    #[test]
+    fn seated_postures_scatter_about_the_static_one() {
+        let mut rng = Rng::new(33);
+        let mut samples = Vec::new();
+        for _ in 0..400 {
+            let p = motion::seated_posture(&mut rng, 0.75);
+            for (j, a) in Joint::ALL.iter().zip(&p) {
+                assert_eq!(a[2], 0.0);
+                samples.push(a[0]);
+                if j.dof() == 3 {
+                    samples.push(a[1]);
+                } else {
+                    assert_eq!(a[1], 0.0);
+                }
+            }
+        }
+        let n = samples.len() as f64;
+        let mean = samples.iter().sum::<f64>() / n;
+        let sd = (samples.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / n).sqrt();
+        // SE of the SD about 0.75 / sqrt(2 n) = 0.006 for n = 8,000.
+        assert!(mean.abs() < 0.03 && (sd - 0.75).abs() < 0.03, "{mean} {sd}");
+
+        // On the data: the seated second holds the drawn posture, not the static one.
+        let err = clean_but(|e| e.seated_posture_sd_deg = 0.75);
+        let s = simulate_with(&short(34, Preset::Clean), &err).unwrap();
+        let t = &s.trials["index"];
+        let defs: Vec<&MarkerDef> = s.markers["index"]
+            .iter()
+            .filter(|d| d.link == Link::IProx)
+            .collect();
+        for f in [0, 50, 99, 250] {
+            let tf = true_transforms(&s, "index", f)[Link::IProx.index()];
+            for d in &defs {
+                let p = t.get(&d.name, f).unwrap();
+                assert!((tf * d.position - p).norm() < 1e-9, "{} frame {f}", d.name);
+            }
+        }
+        let static_pos: Vec<Point> = defs.iter().map(|d| d.position).collect();
+        let first: Vec<Point> = defs.iter().map(|d| t.get(&d.name, 0).unwrap()).collect();
+        let turn = absolute_orientation(&static_pos, &first, None, false)
+            .unwrap()
+            .rotation
+            .angle()
+            .to_degrees();
+        assert!(turn > 0.05 && turn < 6.0, "{turn}");
+        let mid: Vec<Point> = defs.iter().map(|d| t.get(&d.name, 99).unwrap()).collect();
+        assert_eq!(first, mid);
+    }
+
+    #[test]
+    fn landmarks_are_placed_off_their_points_along_the_skin() {
+        // On a sphere of radius 40 mm: the offset along the surface has the drawn SD in each
+        // tangent direction and none along the normal; the marker sits at the offset off it.
+        let sphere = crate::geometry::mesh::tests::icosphere(40.0, 4);
+        let tree = AabbTree::new(&sphere);
+        let normals = sphere.vertex_normals();
+        let mut rng = Rng::new(35);
+        let (mut tangential, mut normal, mut count) = (0.0, 0.0, 0.0);
+        for k in 0..4000u64 {
+            let n = Rng::new(k + 7777).unit_vector();
+            let p = Point::from(n * 40.0);
+            let m = placed_landmark(&tree, &normals, &p, &n, 4.0, 1.0, &mut rng);
+            let d = tree.distance(&m).unwrap();
+            assert!((d - 4.0).abs() < 0.05, "{d}");
+            let skin = m - m.coords.normalize() * 4.0;
+            let off = skin - p;
+            tangential += (off - n * off.dot(&n)).norm_squared();
+            // Along the skin: the moved point is on the sphere (up to the facets' 0.03 mm).
+            normal += (skin.coords.norm() - 40.0).powi(2);
+            count += 1.0;
+        }
+        // SD per tangent direction; its standard error is about 0.008 here.
+        let sd = (tangential / (2.0 * count)).sqrt();
+        assert!((sd - 1.0).abs() < 0.04, "{sd}");
+        assert!(
+            (normal / count).sqrt() < 0.03,
+            "{}",
+            (normal / count).sqrt()
+        );
+
+        // On the data: the static trial's landmarks move, the truth does not, and the palm
+        // markers stay where they were placed through the calibration trials.
+        let opts = short(36, Preset::Clean);
+        let exact = simulate_with(&opts, &clean_but(|_| {})).unwrap();
+        let placed = simulate_with(&opts, &clean_but(|e| e.landmark_sd_mm = 1.0)).unwrap();
+        assert_eq!(exact.truth, placed.truth);
+        let (a, b) = (&exact.trials["reference"], &placed.trials["reference"]);
+        let offsets: Vec<f64> = a
+            .labels
+            .iter()
+            .map(|n| (a.get(n, 0).unwrap() - b.get(n, 0).unwrap()).norm())
+            .collect();
+        // |offset| of a 2-D Gaussian of SD 1: mean sqrt(pi/2) = 1.25.
+        let mean = offsets.iter().sum::<f64>() / offsets.len() as f64;
+        assert!((0.8..1.8).contains(&mean), "{mean}");
+        for m in palm_markers() {
+            let static_at = b.get(m, 0).unwrap();
+            assert!((placed.trials["index"].get(m, 0).unwrap() - static_at).norm() < 1e-9);
+        }
+    }
+
+    #[test]
+    fn shuffled_labels_read_back_by_name() {
+        let opts = short(37, Preset::Typical);
+        let ordered = Preset::Typical.error_model();
+        let ordered = ErrorModel {
+            shuffle_labels: false,
+            ..ordered
+        };
+        let a = simulate_with(&opts, &ordered).unwrap();
+        let b = simulate(&opts).unwrap();
+        let mut reordered = 0;
+        for (key, ta) in &a.trials {
+            let tb = &b.trials[key];
+            let mut la = ta.labels.clone();
+            let mut lb = tb.labels.clone();
+            reordered += usize::from(la != lb);
+            la.sort();
+            lb.sort();
+            assert_eq!(la, lb, "{key}");
+            for name in &ta.labels {
+                assert_eq!(ta.track(name), tb.track(name), "{key} {name}");
+            }
+        }
+        assert_eq!(reordered, a.trials.len(), "every trial reordered");
+        // Through the files: the C3D reader finds every marker by its label.
+        let dir = tempfile::tempdir().unwrap();
+        write_subject(dir.path(), &b, true).unwrap();
+        let subj = Subject::load(dir.path()).unwrap();
+        for kind in [
+            crate::mocap::subject::TrialKind::Reference,
+            crate::mocap::subject::TrialKind::Wrist,
+            crate::mocap::subject::TrialKind::Finger(Finger::Index),
+        ] {
+            let read = subj.load_trial(kind).unwrap();
+            let mem = &a.trials[kind.key()];
+            for name in &mem.labels {
+                for f in (0..mem.n_frames()).step_by(13) {
+                    let (x, y) = (mem.get(name, f), read.get(name, f));
+                    match (x, y) {
+                        (Some(x), Some(y)) => assert!((x - y).norm() < 1e-3, "{name} {f}"),
+                        (x, y) => assert_eq!(x.is_some(), y.is_some(), "{name} {f}"),
+                    }
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn forearm_markers_sit_on_the_skin_or_on_its_continuation() {
+        let wrist = crate::skeleton::JointFrame {
+            centre: Point::origin(),
+            frame: Rotation3::identity(),
+        };
+        let mut rng = Rng::new(38);
+        // A skin that covers the whole forearm: every marker 4 mm off it.
+        let big = crate::geometry::mesh::tests::icosphere(100.0, 4);
+        let tree = AabbTree::new(&big);
+        let defs = forearm_markers(&big, &wrist, Side::Right, 4.0, &mut rng, (0.4, 1.0));
+        assert_eq!(defs.len(), 3);
+        for d in &defs {
+            assert!((tree.distance(&d.position).unwrap() - 4.0).abs() < 1e-9);
+            assert!(d.position.y > 0.0 && d.position.z < -40.0, "{}", d.name);
+        }
+        // A skin cut 30 mm behind the wrist: the markers continue its last section.
+        let small = crate::geometry::mesh::tests::icosphere(30.0, 5);
+        let defs = forearm_markers(&small, &wrist, Side::Left, 4.0, &mut rng, (0.4, 1.0));
+        let height = (30.0f64.powi(2) - 27.0f64.powi(2)).sqrt() + 4.0;
+        for (d, (along, deg)) in defs.iter().zip(capture::ARM_STATIONS) {
+            let p = d.position;
+            assert!((p.z + along).abs() < 1e-9, "{}", d.name);
+            let r = (p.x * p.x + p.y * p.y).sqrt();
+            assert!((r - height).abs() < 0.2, "{}: {r} vs {height}", d.name);
+            // Left hand: radial is -x.
+            assert!(
+                ((-p.x).atan2(p.y).to_degrees() - deg).abs() < 1e-6,
+                "{}",
+                d.name
+            );
+        }
     }
 
     #[test]

@@ -64,6 +64,29 @@ impl MotionVariation {
     }
 }
 
+/// The seated posture of one recording relative to the static reference posture, degrees per
+/// joint ([`Joint::ALL`] order): every voluntary joint angle (flexion; abduction or deviation of
+/// the 3-DOF joints) off by N(0, `sd_deg`), axial rotations 0 (not held voluntarily at these
+/// joints). A subject who settles the hand before each trial does not reproduce the static
+/// posture exactly, so a trial's seated second is only close to the static trial's posture.
+pub fn seated_posture(rng: &mut Rng, sd_deg: f64) -> Vec<[f64; 3]> {
+    Joint::ALL
+        .iter()
+        .map(|j| {
+            if sd_deg <= 0.0 {
+                return [0.0; 3];
+            }
+            let flexion = rng.gauss(0.0, sd_deg);
+            let abduction = if j.dof() == 3 {
+                rng.gauss(0.0, sd_deg)
+            } else {
+                0.0
+            };
+            [flexion, abduction, 0.0]
+        })
+        .collect()
+}
+
 /// Joint angles (degrees; `[flexion, abduction, axial]`) at time `t` seconds of a trial of
 /// length `duration` s; `rom` scales every range of motion (1 = typical, 0.5 = small). The
 /// protocol's nominal motion ([`trial_angles_varied`] with [`MotionVariation::NOMINAL`]).
