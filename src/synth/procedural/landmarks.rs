@@ -68,12 +68,8 @@ pub fn place_landmarks(
         )?;
     }
     // Lateral landmarks: caliper extremes in a slab normal to the link, thumb excluded.
-    let without_thumb: Vec<bool> = skin
-        .vertices
-        .iter()
-        .map(|v| field.distance_without_thumb(v) < 0.2)
-        .collect();
-    let keep = |i: usize| without_thumb[i];
+    // Evaluated only for the vertices inside a slab (`caliper_extreme` tests the slab first).
+    let keep = |i: usize| field.distance_without_thumb(&skin.vertices[i]) < 0.2;
     let radial = {
         let r = sk.centre(Joint::IMcp) - sk.centre(Joint::LMcp);
         (r - dorsal * r.dot(&dorsal)).normalize()

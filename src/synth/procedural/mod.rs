@@ -48,7 +48,8 @@ pub fn build_right_hand(p: &Proportions, bs: &BodySkeleton, posture: Pose) -> Re
     extent.push(
         tf[crate::anatomy::Link::Arm.index()] * Point::new(0.0, -0.3 * p.hand_length - 12.0, 0.0),
     );
-    let skin = polygonise::polygonise(&field, &extent, 0.5 * p.wrist_breadth + 8.0, MESH_VOXEL_MM)?;
+    let skin =
+        polygonise::polygonise(&field, &extent, 0.55 * p.wrist_breadth + 4.0, MESH_VOXEL_MM)?;
     let palm = tf[crate::anatomy::Link::Palm.index()];
     let bases = [palm * bs.metacarpal_bases[0], palm * bs.metacarpal_bases[3]];
     let landmarks = landmarks::place_landmarks(&skin, &field, &posed, bases)?;
@@ -69,13 +70,15 @@ pub fn build_right_hand(p: &Proportions, bs: &BodySkeleton, posture: Pose) -> Re
 /// The procedural body of a subject: proportions, skeleton and relaxed posture drawn from
 /// `root` (forked by name), `posture` (the subject's drawn variation, relative to the body's own
 /// reference posture) added to the relaxed posture; the left hand is the right one mirrored.
-/// The returned posture is the total, relative to the neutral straight hand.
+/// Neighbouring fingers the drawn posture would push into each other are spread back
+/// ([`skeleton::keep_fingers_apart`]). The returned posture is the total, relative to the
+/// neutral straight hand.
 pub fn procedural_body(side: Side, root: &Rng, posture: Pose) -> Result<TrueHand> {
     let rng = root.fork("procedural");
     let p = Proportions::sample(&mut rng.fork("proportions"));
     let bs = skeleton::build_skeleton(&p, &mut rng.fork("skeleton"))?;
     let relaxed = skeleton::relaxed_posture(&mut rng.fork("relaxed"));
-    let total = skeleton::add_postures(&relaxed, &posture);
+    let total = skeleton::keep_fingers_apart(&bs, &p, &skeleton::add_postures(&relaxed, &posture));
     let built = build_right_hand(&p, &bs, total)?;
     Ok(match side {
         Side::Right => built.hand,

@@ -17,7 +17,7 @@
 //!   axis relative to the fingers (its nail faces radially, a little palmar);
 //! * 1-DOF axes (PIP, DIP, thumb MCP and IP) tilted 2-7° from the perpendicular to the bone so
 //!   that a flexing finger turns toward the scaphoid (the convergence of flexed fingers), plus a
-//!   random twist of up to 1°, so no two axes are parallel.
+//!   twist of 0.7-1.5° (opposite on a digit's two hinges), so no two axes are parallel.
 
 use super::proportions::Proportions;
 use crate::anatomy::{Finger, Joint, Side};
@@ -141,7 +141,9 @@ pub fn build_skeleton(p: &Proportions, rng: &mut Rng) -> crate::Result<BodySkele
                 Finger::Little => rng.range(4.0, 7.0),
             }
             .to_radians();
-            let twist = rng.range(-1.0, 1.0).to_radians();
+            // PIP/IP and DIP twist opposite ways, so a digit's two hinges are never parallel.
+            let twist_sign = if j.rank() == 1 { 1.0 } else { -1.0 };
+            let twist = (twist_sign * rng.range(0.7, 1.5)).to_radians();
             let toward = scaphoid - sk.centre(j);
             let lateral = toward - z * toward.dot(&z) - y * toward.dot(&y);
             let pick = |sign: f64| {
@@ -200,4 +202,48 @@ pub fn add_postures(a: &Pose, b: &Pose) -> Pose {
         }
     }
     out
+}
+
+/// Fingers cannot pass through each other: where the posture brings two neighbouring fingers
+/// (beyond the web, a third along the proximal phalanx, to the tips) closer than their half
+/// breadths at the PIP plus 0.5 mm, the MCP abduction of both is scaled back toward the neutral
+/// fan, by 20 % a step, until they are apart (at most 20 steps).
+pub fn keep_fingers_apart(bs: &BodySkeleton, p: &Proportions, pose: &Pose) -> Pose {
+    use crate::skeleton::forward_kinematics::{link_transforms, posed_skeleton};
+    let mut pose = pose.clone();
+    for _ in 0..20 {
+        let posed = posed_skeleton(&bs.skeleton, &link_transforms(&bs.skeleton, &pose));
+        let samples = |f: Finger| -> Vec<Point> {
+            let [m, pi, d] = f.joints().map(|j| posed.centre(j));
+            let tip = posed.tips[f as usize];
+            let mut out = Vec::new();
+            for (a, b, from) in [(m, pi, 1.0 / 3.0), (pi, d, 0.0), (d, tip, 0.0)] {
+                for k in 0..6 {
+                    let t = from + (1.0 - from) * k as f64 / 5.0;
+                    out.push(a + (b - a) * t);
+                }
+            }
+            out
+        };
+        let mut clash = Vec::new();
+        for pair in Finger::ALL[1..].windows(2) {
+            let (a, b) = (pair[0], pair[1]);
+            let need = 0.5 * (p.sections[a as usize][0] + p.sections[b as usize][0]) + 0.5;
+            let (sa, sb) = (samples(a), samples(b));
+            let closest = sa
+                .iter()
+                .flat_map(|x| sb.iter().map(move |y| (x - y).norm()))
+                .fold(f64::INFINITY, f64::min);
+            if closest < need {
+                clash.extend([a, b]);
+            }
+        }
+        if clash.is_empty() {
+            break;
+        }
+        for f in clash {
+            pose.angles[f.joints()[0].index()][1] *= 0.8;
+        }
+    }
+    pose
 }
