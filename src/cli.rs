@@ -528,6 +528,19 @@ pub fn validate(subject_dir: &Path, model: &Path, report: &Path, log: &Log) -> R
                 r.mean_mm, r.sd_mm, r.p95_mm, r.max_mm, r.n
             );
         }
+        if let Some(regions) = &v.surface_regions {
+            println!("region                     vertices  mean  95th pct   max (mm)");
+            for e in regions
+                .regions
+                .iter()
+                .chain(std::iter::once(&regions.hand_distal_of_wrist))
+            {
+                println!(
+                    "{:26} {:>8} {:>5.2} {:>9.2} {:>10.2}",
+                    e.region, e.vertices, e.mean_mm, e.p95_mm, e.max_mm
+                );
+            }
+        }
         if let Some(acc) = &v.link {
             println!("link         estimated    true (mm)");
             for (k, (m, t)) in &acc.link_lengths {
@@ -659,10 +672,26 @@ pub fn validate_suite(dir: &Path, report: &Path, log: &Log) -> Result<()> {
             ));
             summary.insert(
                 name.clone(),
-                serde_json::json!({"body": o.body.name(), "preset": o.preset.name(), "held_out": held_out, "median_centre_3dof_mm": median(c3), "median_centre_1dof_mm": median(c1), "median_axis_deg": median(ax), "max_centre_mm": max, "skin": surf, "dimensions": dims, "seconds": secs, "joints": acc.joints}),
+                serde_json::json!({"body": o.body.name(), "preset": o.preset.name(), "held_out": held_out, "median_centre_3dof_mm": median(c3), "median_centre_1dof_mm": median(c1), "median_axis_deg": median(ax), "max_centre_mm": max, "skin": surf, "surface_regions": v.surface_regions, "dimensions": dims, "seconds": secs, "joints": acc.joints}),
             );
         }
     }
+    let region_groups: Vec<(String, Vec<&crate::validate::SubjectValidation>)> = synth::Body::ALL
+        .iter()
+        .map(|b| {
+            let g = rows
+                .iter()
+                .filter(|r| r.1.body == *b)
+                .map(|r| &r.3)
+                .collect();
+            (b.name().to_string(), g)
+        })
+        .filter(|g: &(String, Vec<&crate::validate::SubjectValidation>)| !g.1.is_empty())
+        .collect();
+    md.push_str("\n## Skin to reference per region\n\n");
+    md.push_str(&crate::validate::report_md::table_markdown(
+        &crate::validate::suite_index::region_summary_table(&region_groups),
+    ));
     let mut tets = Vec::new();
     for (name, ..) in &rows {
         let q = crate::validate::tet_quality::read_tet_quality(

@@ -218,6 +218,7 @@ fn validate_like_a_real_subject(subj: &Path, model: &Path, full: &serde_json::Va
         assert_eq!(m["joint_fits"], full["joint_fits"]);
         for key in [
             "surface",
+            "surface_regions",
             "surface_reverse",
             "reference_vertices",
             "reference_stride",
@@ -360,6 +361,31 @@ fn reconstruct_and_validate_a_simulated_subject() {
         skin.n_vertices()
     );
     assert!(metrics["surface_reverse"]["mean_mm"].as_f64().unwrap() < 1.0);
+    // The regions partition the skin's vertices, and their statistics recombine into the
+    // whole skin's mean.
+    let regions = metrics["surface_regions"]["regions"].as_array().unwrap();
+    let n: u64 = regions
+        .iter()
+        .map(|r| r["vertices"].as_u64().unwrap())
+        .sum();
+    assert_eq!(n as usize, skin.n_vertices());
+    let weighted: f64 = regions
+        .iter()
+        .map(|r| r["vertices"].as_f64().unwrap() * r["mean_mm"].as_f64().unwrap())
+        .sum();
+    let mean = metrics["surface"]["mean_mm"].as_f64().unwrap();
+    assert!(
+        (weighted / n as f64 - mean).abs() < 1e-9,
+        "{weighted} {mean}"
+    );
+    let wrist = regions.iter().find(|r| r["region"] == "wrist").unwrap();
+    assert_eq!(
+        metrics["surface_regions"]["hand_distal_of_wrist"]["vertices"]
+            .as_u64()
+            .unwrap(),
+        n - wrist["vertices"].as_u64().unwrap()
+    );
+    assert!(md.contains("per region") && html.contains("per region"));
     assert_eq!(metrics["joint_fits"].as_array().unwrap().len(), 16);
     // A real lab subject has no truth.json, and may have no reference.ply either.
     validate_like_a_real_subject(&subj, &out, &metrics, &dir.path().join("real"));

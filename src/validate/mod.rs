@@ -18,6 +18,7 @@ pub mod report_md;
 pub mod report_tables;
 pub mod suite_index;
 pub mod surface_error;
+pub mod surface_regions;
 pub mod tet_quality;
 pub mod thresholds;
 

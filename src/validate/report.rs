@@ -18,6 +18,7 @@ use super::joint_fit::{joint_fits, JointFit};
 use super::joint_fit_plots::{joint_fit_figures, radius_figure};
 use super::link_accuracy::{compare, link_lengths, read_joints, read_truth, LinkAccuracy};
 use super::surface_error::SurfaceError;
+use super::surface_regions::{hand_regions, surface_regions, SurfaceRegions};
 use crate::anatomy::{landmark_names, Side};
 use crate::error::{Error, Result};
 use crate::geometry::TriMesh;
@@ -95,8 +96,8 @@ pub struct References {
 
 /// Everything `validate` measured on one subject (`metrics.json`). Fields that need a
 /// reference the subject lacks are `None` (`null` in the JSON): `link` without `truth.json`;
-/// `surface`, `surface_reverse`, `reference_vertices`, `reference_stride` and
-/// `colour_scale_top_mm` without `reference.ply`.
+/// `surface`, `surface_regions`, `surface_reverse`, `reference_vertices`, `reference_stride`
+/// and `colour_scale_top_mm` without `reference.ply`.
 #[derive(Clone, Debug, Serialize)]
 pub struct SubjectValidation {
     /// Subject name (`subject.toml`).
@@ -111,6 +112,9 @@ pub struct SubjectValidation {
     pub link_lengths_mm: BTreeMap<String, f64>,
     /// `skin.obj`'s vertices to `reference.ply`'s surface (`None`: no reference).
     pub surface: Option<SurfaceError>,
+    /// `surface` per anatomical region of the skin, and over the hand distal of the wrist
+    /// (`None`: no reference).
+    pub surface_regions: Option<SurfaceRegions>,
     /// `reference.ply`'s vertices (every `reference_stride`-th) to `skin.obj`'s surface.
     pub surface_reverse: Option<SurfaceError>,
     /// Vertices of the reference surface.
@@ -301,6 +305,16 @@ pub fn validate_subject(
     );
     let fits = fits?;
     drop(reference);
+    let regions = map
+        .as_ref()
+        .map(|m| -> Result<SurfaceRegions> {
+            surface_regions(
+                &m.skin_to_reference,
+                &hand_regions(subject.hand)?,
+                &skin_path,
+            )
+        })
+        .transpose()?;
     // The calipers on the skin: the model's joints, and the landmarks where the static trial's
     // markers meet the skin.
     let skeleton = skeleton_from_records(&joints, subject.hand, &model_path)?;
@@ -390,6 +404,7 @@ pub fn validate_subject(
         link,
         link_lengths_mm: link_lengths(&joints),
         surface: map.as_ref().map(|m| m.skin_to_reference_stats.clone()),
+        surface_regions: regions,
         surface_reverse: map.as_ref().map(|m| m.reference_to_skin_stats.clone()),
         reference_vertices: map.as_ref().map(|m| m.reference_vertices),
         reference_stride: map.as_ref().map(|m| m.reference_stride),

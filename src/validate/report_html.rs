@@ -320,6 +320,10 @@ pub fn subject_html(v: &SubjectValidation, figs: &ReportFigures) -> String {
         distances,
         "Distribution of the distances in both directions: the share of each direction's points in each bin, side by side.",
     ));
+        if let Some(regions) = tables::region_table(v) {
+            b.push_str("<h3>Skin → reference per region</h3>");
+            b.push_str(&table_html(&regions));
+        }
     } else {
         b.push_str(&format!(
             "<p class=\"lead\">{}</p>",

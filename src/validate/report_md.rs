@@ -95,6 +95,10 @@ pub fn subject_markdown(v: &SubjectValidation, figs: &ReportFigures) -> String {
         ));
         s.push_str(&table_markdown(&table));
         s.push_str(&chart(distances));
+        if let Some(regions) = tables::region_table(v) {
+            s.push_str("### Skin → reference per region\n\n");
+            s.push_str(&table_markdown(&regions));
+        }
     } else {
         s.push_str(&format!("{}\n\n", tables::SKIPPED_SURFACE));
     }

@@ -163,6 +163,16 @@ pub fn key_figures(v: &SubjectValidation) -> Vec<(String, String, String)> {
                 s.p95_mm, s.max_mm
             ),
         ));
+        if let Some(h) = v.surface_regions.as_ref().map(|r| &r.hand_distal_of_wrist) {
+            k.push((
+                "hand distal of the wrist".into(),
+                format!("{:.2} mm", h.mean_mm),
+                format!(
+                    "skin → reference over every region but the wrist; max {:.2} mm",
+                    h.max_mm
+                ),
+            ));
+        }
         k.push((
             "reference → skin".into(),
             format!("{:.2} mm", r.mean_mm),
@@ -251,6 +261,37 @@ pub fn surface_table(v: &SubjectValidation) -> Option<Table> {
     if stride == 1 {
         t.note = format!("Reference → skin measures all {vertices} vertices of the reference.");
     }
+    Some(t)
+}
+
+/// The skin-to-reference distance per anatomical region (`surface_regions`), with the hand
+/// distal of the wrist as the summary row (`None` without `reference.ply`).
+pub fn region_table(v: &SubjectValidation) -> Option<Table> {
+    let r = v.surface_regions.as_ref()?;
+    let mut t = Table::new(
+        &["region", "vertices", "mean", "95th percentile", "max (mm)"],
+        &[false, true, true, true, true],
+    );
+    for e in r
+        .regions
+        .iter()
+        .chain(std::iter::once(&r.hand_distal_of_wrist))
+    {
+        let empty = e.vertices == 0;
+        let num = |x: f64| if empty { "–".to_string() } else { f2(x) };
+        t.rows.push(vec![
+            Cell::new(e.region.clone()),
+            Cell::new(e.vertices.to_string()),
+            Cell::new(num(e.mean_mm)),
+            Cell::new(num(e.p95_mm)),
+            Cell::new(num(e.max_mm)),
+        ]);
+    }
+    t.summary_rows = 1;
+    t.note = format!(
+        "skin.obj vertices → reference.ply by region of the template hand, carried to the skin by vertex index: fingertips are the distal links, fingers the proximal and middle phalanges, the thenar the thumb metacarpal, the wrist the skin less than {:.0} mm distal of the wrist centre and the forearm; the palm is split into dorsal and palmar by the normal, with the hypothenar its palmar ulnar part (src/validate/surface_regions.rs).",
+        super::surface_regions::WRIST_BAND_MM
+    );
     Some(t)
 }
 
@@ -500,6 +541,7 @@ mod tests {
             link: None,
             link_lengths_mm: BTreeMap::from([("I_MCP-I_PIP".to_string(), 45.0)]),
             surface: None,
+            surface_regions: None,
             surface_reverse: None,
             reference_vertices: None,
             reference_stride: None,

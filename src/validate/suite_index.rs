@@ -124,6 +124,56 @@ fn f2(x: f64) -> String {
     }
 }
 
+/// Per body (`groups`: body name and its subjects' validations; bodies are never pooled): the
+/// mean over the subjects of each region's mean skin-to-reference distance, and of the hand
+/// distal of the wrist's mean, with the largest of its maxima.
+pub fn region_summary_table(groups: &[(String, Vec<&SubjectValidation>)]) -> Table {
+    use super::surface_regions::Region;
+    let mut head: Vec<String> = vec!["body".into(), "subjects".into()];
+    head.extend(Region::ALL.iter().map(|r| format!("{} (mm)", r.name())));
+    head.push("hand distal of the wrist, mean / max (mm)".into());
+    let n_cols = head.len();
+    let mut t = Table {
+        head,
+        rows: Vec::new(),
+        numeric: (0..n_cols).map(|i| i > 0).collect(),
+        summary_rows: 0,
+        note: "Skin → reference per region of the template hand (src/validate/surface_regions.rs): per body, the mean over its subjects of each region's mean; the last column also gives the largest of the subjects' maxima.".into(),
+    };
+    let cell = |text: String| Cell { text, flag: false };
+    for (body, g) in groups {
+        let regs: Vec<&super::surface_regions::SurfaceRegions> = g
+            .iter()
+            .filter_map(|v| v.surface_regions.as_ref())
+            .collect();
+        let k = regs.len() as f64;
+        let mut row = vec![cell(body.clone()), cell(regs.len().to_string())];
+        for r in Region::ALL {
+            let means: Vec<f64> = regs
+                .iter()
+                .filter_map(|s| s.get(r))
+                .filter(|e| e.vertices > 0)
+                .map(|e| e.mean_mm)
+                .collect();
+            row.push(cell(f2(means.iter().sum::<f64>() / means.len() as f64)));
+        }
+        row.push(cell(format!(
+            "{} / {}",
+            f2(regs
+                .iter()
+                .map(|s| s.hand_distal_of_wrist.mean_mm)
+                .sum::<f64>()
+                / k),
+            f2(regs
+                .iter()
+                .map(|s| s.hand_distal_of_wrist.max_mm)
+                .fold(f64::NAN, f64::max))
+        )));
+        t.rows.push(row);
+    }
+    t
+}
+
 /// The index page; `dir` is where it is written (links are relative to it).
 pub fn suite_index_html(rows: &[SuiteRow], dir: &Path) -> String {
     let mut b = String::new();
@@ -320,6 +370,23 @@ pub fn suite_index_html(rows: &[SuiteRow], dir: &Path) -> String {
         .count();
     b.push_str("<section id=\"summary\"><h2>Summary per body and preset</h2>");
     b.push_str(&table_html(&t));
+    b.push_str("</section>\n");
+
+    // Per body and region.
+    let groups: Vec<(String, Vec<&SubjectValidation>)> = crate::synth::Body::ALL
+        .iter()
+        .map(|b| {
+            let g = rows
+                .iter()
+                .filter(|r| r.opts.body == *b)
+                .map(|r| r.validation)
+                .collect();
+            (b.name().to_string(), g)
+        })
+        .filter(|g: &(String, Vec<&SubjectValidation>)| !g.1.is_empty())
+        .collect();
+    b.push_str("<section id=\"regions\"><h2>Skin → reference per region</h2>");
+    b.push_str(&table_html(&region_summary_table(&groups)));
     b.push_str("</section>\n");
 
     // Repeatability.
