@@ -249,13 +249,12 @@ fn pen(p: &Point) -> f64 {
 /// What [`clean_part`] removed from a part mesh.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct PartCleaning {
-    /// Vertices merged into another within the tolerance.
-    pub welded_vertices: usize,
-    /// Faces of (numerically) zero area, collapsed ones included.
+    /// Faces using one vertex twice (zero area whatever the coordinates).
     pub degenerate_faces: usize,
-    /// Faces on the same three vertices as an earlier face, in either orientation.
+    /// Faces on the same three vertices as an earlier face (matched within the weld
+    /// tolerance), in either orientation.
     pub repeated_faces: usize,
-    /// Vertices no face uses.
+    /// Vertices no face uses (after the removals).
     pub unused_vertices: usize,
 }
 
@@ -268,82 +267,68 @@ impl PartCleaning {
     /// One line naming the counts, for the scene's warning.
     pub fn describe(&self) -> String {
         format!(
-            "part cleaned before use: {} vertices welded, {} zero-area and {} repeated triangles \
-             and {} unused vertices removed",
-            self.welded_vertices, self.degenerate_faces, self.repeated_faces, self.unused_vertices
+            "part cleaned before use: {} repeated and {} zero-area triangles and {} unused \
+             vertices removed",
+            self.repeated_faces, self.degenerate_faces, self.unused_vertices
         )
     }
 }
 
 /// Relative weld tolerance of [`clean_part`]: vertices within this fraction of the part's
-/// bounding-box diagonal are one (1e-6: 0.2 um on a 200 mm part, far below any modelled
-/// feature, far above the rounding of 32-bit STL coordinates of a mm-sized scene).
+/// bounding-box diagonal count as one when faces are compared (1e-6: 0.2 um on a 200 mm part,
+/// far below any modelled feature, above the rounding of 32-bit STL coordinates).
 pub const WELD_TOLERANCE: f64 = 1e-6;
 
-/// A part mesh as the grasp checks need it: vertices within [`WELD_TOLERANCE`] x the diagonal
-/// welded, faces of zero area (below the square of that tolerance) and faces repeating an
-/// earlier face's vertex set (in either orientation: a doubled or two-sided export) dropped,
-/// and unused vertices removed, keeping the first occurrence of everything in input order.
-/// A clean mesh comes back unchanged. Repeated triangles otherwise double the contact query's
-/// work and the contacts themselves (each contact is found on both copies), which changes the
-/// wrench set and so the grasp quality.
+/// A part mesh as the grasp checks need it: faces repeating an earlier face (the same three
+/// vertices once welded within [`WELD_TOLERANCE`] x the diagonal, in either orientation: a
+/// doubled or two-sided export) and faces using one vertex twice dropped, then unused vertices
+/// removed; everything else kept as it is, in input order, so a clean part comes back
+/// unchanged. Repeated triangles otherwise double the contact query's work and the contacts
+/// themselves (each contact is found on both copies), which changes the wrench set and so the
+/// grasp quality.
+///
+/// The weld only matches faces; it does not move vertices or drop thin slivers with three
+/// distinct vertices: the marching-tetrahedra parts hold thousands of vertices closer than the
+/// tolerance and near-zero-area faces, and collapsing those opened the bottle, phone and mouse
+/// (they stopped being closed 2-manifolds, which turns the inside tests off).
 pub fn clean_part(mesh: &TriMesh) -> (TriMesh, PartCleaning) {
-    let diag = mesh.diagonal();
-    let tol = WELD_TOLERANCE * diag;
-    let (welded, remap) = mesh.weld(tol);
-    let mut report = PartCleaning {
-        welded_vertices: mesh.n_vertices() - welded.n_vertices(),
-        ..Default::default()
-    };
-    // Faces that collapsed in the weld count as degenerate.
-    let collapsed = mesh
-        .faces
-        .iter()
-        .filter(|f| {
-            let g = [remap[f[0]], remap[f[1]], remap[f[2]]];
-            g[0] == g[1] || g[1] == g[2] || g[0] == g[2]
-        })
-        .count();
-    report.degenerate_faces = collapsed;
-    let min_area = tol * tol;
+    let tol = WELD_TOLERANCE * mesh.diagonal();
+    let (_, remap) = mesh.weld(tol);
+    let mut report = PartCleaning::default();
     let mut seen = std::collections::HashSet::new();
-    let mut faces = Vec::with_capacity(welded.faces.len());
-    for f in &welded.faces {
-        let [a, b, c] = f.map(|i| welded.vertices[i]);
-        if 0.5 * (b - a).cross(&(c - a)).norm() <= min_area {
+    let mut faces = Vec::with_capacity(mesh.faces.len());
+    for f in &mesh.faces {
+        if f[0] == f[1] || f[1] == f[2] || f[0] == f[2] {
             report.degenerate_faces += 1;
             continue;
         }
-        let mut key = *f;
+        let mut key = f.map(|i| remap[i]);
         key.sort_unstable();
-        if !seen.insert(key) {
+        // A face that collapses in the weld is a sliver of a fine mesh, not a repeat.
+        let collapsed = key[0] == key[1] || key[1] == key[2];
+        if !collapsed && !seen.insert(key) {
             report.repeated_faces += 1;
             continue;
         }
         faces.push(*f);
     }
-    let mut new_index = vec![usize::MAX; welded.n_vertices()];
-    let mut vertices = Vec::with_capacity(welded.n_vertices());
+    let mut used = vec![false; mesh.n_vertices()];
     for f in &faces {
         for &i in f {
-            if new_index[i] == usize::MAX {
-                new_index[i] = vertices.len();
-                vertices.push(welded.vertices[i]);
-            }
+            used[i] = true;
         }
     }
-    // Keep the input's vertex order (the first-use order above would renumber a clean mesh).
-    let mut order: Vec<usize> = (0..welded.n_vertices())
-        .filter(|&i| new_index[i] != usize::MAX)
-        .collect();
-    order.sort_unstable();
-    let mut index = vec![usize::MAX; welded.n_vertices()];
-    for (k, &i) in order.iter().enumerate() {
-        index[i] = k;
+    let mut index = vec![usize::MAX; mesh.n_vertices()];
+    let mut vertices = Vec::with_capacity(mesh.n_vertices());
+    for (i, p) in mesh.vertices.iter().enumerate() {
+        if used[i] {
+            index[i] = vertices.len();
+            vertices.push(*p);
+        }
     }
-    report.unused_vertices = welded.n_vertices() - order.len();
+    report.unused_vertices = mesh.n_vertices() - vertices.len();
     let cleaned = TriMesh {
-        vertices: order.iter().map(|&i| welded.vertices[i]).collect(),
+        vertices,
         faces: faces.iter().map(|f| f.map(|i| index[i])).collect(),
     };
     (cleaned, report)
@@ -408,8 +393,9 @@ mod tests {
         assert!(!r.changed(), "{r:?}");
         assert_eq!(same.vertices, cube.vertices);
         assert_eq!(same.faces, cube.faces);
-        // Every triangle twice (once flipped, as a two-sided export), a vertex repeated a
-        // fraction of a micrometre off, a sliver of zero area and an unused vertex.
+        // Every triangle twice (once flipped, as a two-sided export), a triangle repeated on a
+        // copy of a vertex a fraction of a micrometre off, a face using a vertex twice and an
+        // unused vertex.
         let mut dirty = cube.clone();
         let n = dirty.n_vertices();
         let [a, b, c] = cube.faces[0];
@@ -428,13 +414,24 @@ mod tests {
         assert_eq!(
             r,
             PartCleaning {
-                welded_vertices: 1,
                 degenerate_faces: 1,
                 repeated_faces: 13,
-                unused_vertices: 1,
+                unused_vertices: 2,
             }
         );
         assert!(r.describe().contains("13 repeated"));
+    }
+
+    /// The shipped parts are clean: nothing removed, so their grasps are as before.
+    #[test]
+    fn shipped_parts_come_out_of_cleaning_unchanged() {
+        for part in Part::ALL {
+            let path = scenes_dir().join(format!("{}.stl", part.name()));
+            let m = read_stl(&path, Units::Millimetres).unwrap();
+            let (c, r) = clean_part(&m);
+            assert!(!r.changed(), "{}: {r:?}", part.name());
+            assert_eq!(c.faces, m.faces);
+        }
     }
 
     #[test]
