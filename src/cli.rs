@@ -398,6 +398,16 @@ fn reconstruct_stages<'p>(
     crate::io::gltf::write_glb(&out.join("hand.glb"), &scene, Units::Metres)?;
     let mut warnings = model.warnings.clone();
     warnings.extend(skin.warnings.iter().cloned());
+    // An inverted element is a suspect model: said loudly, never only counted.
+    let inverted_tets = tet.inverted_count();
+    if inverted_tets > 0 {
+        let w = format!(
+            "tet.vtk: {inverted_tets} of {} tetrahedra are inverted (negative volume); the skin may fold where the template could not follow the subject",
+            tet.n_tets()
+        );
+        log.warn(&w);
+        warnings.push(w);
+    }
     let report = ReconstructReport {
         subject: subject.name.clone(),
         hand: subject.hand,
