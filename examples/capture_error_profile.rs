@@ -51,15 +51,7 @@ const CONFIGS: [&str; 8] = [
 /// The error model of a configuration.
 fn error_model(config: &str) -> ErrorModel {
     let all = Preset::Typical.error_model();
-    let base = ErrorModel {
-        palm_sta_mm: (0.0, 0.0),
-        plate_spin_deg: (0.0, 0.0),
-        seated_posture_sd_deg: 0.0,
-        landmark_sd_mm: 0.0,
-        shuffle_labels: false,
-        seat: (1.5, 1.0),
-        ..all
-    };
+    let base = all.first_capture_model();
     match config {
         "palm" => ErrorModel {
             palm_sta_mm: all.palm_sta_mm,
