@@ -102,7 +102,7 @@ mod tests {
     use crate::anatomy::{landmark_names, Side};
     use crate::measure::landmarks_on_skin;
     use crate::skeleton::record::skeleton_from_records;
-    use crate::synth::{simulate, Preset, SynthOptions};
+    use crate::synth::{simulate_with, Preset, SynthOptions};
     use crate::template::load_template;
     use std::path::Path;
 
@@ -161,7 +161,7 @@ mod tests {
     /// the section it defines, which is the capture's error, not the calipers'.
     #[test]
     fn validate_path_rereads_the_truth() {
-        let s = crate::synth::simulate_with(
+        let s = simulate_with(
             &SynthOptions {
                 duration_s: Some(4.0),
                 voxel_mm: 1.0,
