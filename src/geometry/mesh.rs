@@ -294,6 +294,29 @@ pub(crate) mod tests {
         TriMesh::new(vertices, faces).unwrap()
     }
 
+    /// Torus about z (major radius `big`, minor `small`), `n` x `m` quads split in two:
+    /// closed, genus one, faces counter-clockwise from outside.
+    pub fn torus(big: f64, small: f64, n: usize, m: usize) -> TriMesh {
+        let mut v = Vec::new();
+        for i in 0..n {
+            let a = i as f64 / n as f64 * std::f64::consts::TAU;
+            for j in 0..m {
+                let b = j as f64 / m as f64 * std::f64::consts::TAU;
+                let r = big + small * b.cos();
+                v.push(Point::new(r * a.cos(), r * a.sin(), small * b.sin()));
+            }
+        }
+        let id = |i: usize, j: usize| (i % n) * m + (j % m);
+        let mut f = Vec::new();
+        for i in 0..n {
+            for j in 0..m {
+                let (p, q, r, s) = (id(i, j), id(i + 1, j), id(i + 1, j + 1), id(i, j + 1));
+                f.extend([[p, q, r], [p, r, s]]);
+            }
+        }
+        TriMesh::new(v, f).unwrap()
+    }
+
     /// Icosahedron subdivided `level` times (each triangle into four), projected on a sphere.
     pub fn icosphere(radius: f64, level: usize) -> TriMesh {
         let t = (1.0 + 5f64.sqrt()) / 2.0;

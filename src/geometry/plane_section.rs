@@ -219,34 +219,11 @@ pub fn plane_section(mesh: &TriMesh, plane: &Plane) -> Vec<SectionLoop> {
 #[cfg(test)]
 pub(crate) mod tests {
     use super::*;
-    use crate::geometry::mesh::tests::{cuboid, icosphere};
+    use crate::geometry::mesh::tests::{cuboid, icosphere, torus};
     use std::f64::consts::PI;
 
     fn plane(p: [f64; 3], n: [f64; 3]) -> Plane {
         Plane::new(Point::new(p[0], p[1], p[2]), Vec3::new(n[0], n[1], n[2])).unwrap()
-    }
-
-    /// A torus about z (major radius `r_big`, minor `r_small`), `n` x `m` quads split in two.
-    fn torus(r_big: f64, r_small: f64, n: usize, m: usize) -> TriMesh {
-        let mut v = Vec::new();
-        for i in 0..n {
-            let a = 2.0 * PI * i as f64 / n as f64;
-            for j in 0..m {
-                let b = 2.0 * PI * j as f64 / m as f64;
-                let r = r_big + r_small * b.cos();
-                v.push(Point::new(r * a.cos(), r * a.sin(), r_small * b.sin()));
-            }
-        }
-        let id = |i: usize, j: usize| (i % n) * m + (j % m);
-        let mut f = Vec::new();
-        for i in 0..n {
-            for j in 0..m {
-                let (a, b, c, d) = (id(i, j), id(i + 1, j), id(i + 1, j + 1), id(i, j + 1));
-                f.push([a, b, c]);
-                f.push([a, c, d]);
-            }
-        }
-        TriMesh::new(v, f).unwrap()
     }
 
     /// A right prism over the counter-clockwise polygon `outline` (x, y), with a ring of

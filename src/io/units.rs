@@ -28,6 +28,24 @@ impl Units {
             Units::Inches => 25.4,
         }
     }
+
+    /// The unit in which a length whose number is `raw` most plausibly measures `expected_mm`
+    /// (nearest on a log scale, so a factor of 10 too big and too small weigh the same), to
+    /// name in an error when a file's numbers are the wrong size for its declared unit.
+    pub fn likely(raw: f64, expected_mm: f64) -> Units {
+        [
+            Units::Millimetres,
+            Units::Centimetres,
+            Units::Inches,
+            Units::Metres,
+        ]
+        .into_iter()
+        .min_by(|a, b| {
+            let off = |u: &Units| (raw * u.to_mm() / expected_mm).ln().abs();
+            off(a).total_cmp(&off(b))
+        })
+        .unwrap_or(Units::Millimetres)
+    }
 }
 
 impl FromStr for Units {
@@ -57,5 +75,27 @@ impl fmt::Display for Units {
             Units::Millimetres => "mm",
             Units::Inches => "in",
         })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A 180 mm hand written in each unit is recognised as that unit, and a borderline value
+    /// goes to the unit nearer on a log scale.
+    #[test]
+    fn likely_unit_recovers_the_unit_of_a_known_length() {
+        for u in [
+            Units::Metres,
+            Units::Centimetres,
+            Units::Millimetres,
+            Units::Inches,
+        ] {
+            assert_eq!(Units::likely(180.0 / u.to_mm(), 180.0), u);
+        }
+        // 180 mm read as 7.1: inches (7.09) rather than cm (18).
+        assert_eq!(Units::likely(7.1, 180.0), Units::Inches);
+        assert_eq!(Units::likely(0.5, 180.0), Units::Metres);
     }
 }

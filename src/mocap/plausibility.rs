@@ -119,18 +119,7 @@ pub fn check_hand_scale(traj: &Trajectories, units: Units) -> Result<()> {
         // The unit under which the values would put the markers nearest a typical hand's
         // 50 mm, on a log scale.
         let raw = r_med / units.to_mm();
-        let likely = [
-            Units::Millimetres,
-            Units::Centimetres,
-            Units::Inches,
-            Units::Metres,
-        ]
-        .into_iter()
-        .min_by(|a, b| {
-            let off = |u: &Units| (raw * u.to_mm() / 50.0).ln().abs();
-            off(a).total_cmp(&off(b))
-        })
-        .unwrap_or(Units::Millimetres);
+        let likely = Units::likely(raw, 50.0);
         return Err(Error::input(
             &traj.source,
             format!(

@@ -485,7 +485,7 @@ mod tests {
     use rayon::prelude::*;
     use std::collections::HashMap;
 
-    use crate::geometry::mesh::tests::icosphere;
+    use crate::geometry::mesh::tests::{icosphere, torus};
 
     /// Closed box `[0,a]x[0,b]x[0,c]` whose six sides are `n x n` grids of right triangles
     /// (diagonals alternating), faces outward.
@@ -529,28 +529,6 @@ mod tests {
             }
         }
         TriMesh::new(vertices, faces).unwrap()
-    }
-
-    /// Torus about z, major radius `big`, minor `small`, `n x m` quads split in two.
-    fn torus(big: f64, small: f64, n: usize, m: usize) -> TriMesh {
-        let mut v = Vec::new();
-        for i in 0..n {
-            let a = i as f64 / n as f64 * std::f64::consts::TAU;
-            for j in 0..m {
-                let b = j as f64 / m as f64 * std::f64::consts::TAU;
-                let r = big + small * b.cos();
-                v.push(Point::new(r * a.cos(), r * a.sin(), small * b.sin()));
-            }
-        }
-        let id = |i: usize, j: usize| (i % n) * m + (j % m);
-        let mut f = Vec::new();
-        for i in 0..n {
-            for j in 0..m {
-                let (p, q, r, s) = (id(i, j), id(i + 1, j), id(i + 1, j + 1), id(i, j + 1));
-                f.extend([[p, q, r], [p, r, s]]);
-            }
-        }
-        TriMesh::new(v, f).unwrap()
     }
 
     /// Distance from `p` to the triangle `abc` (Ericson, Real-Time Collision Detection, 5.1.5).

@@ -800,30 +800,7 @@ mod tests {
     use crate::geometry::Vec3;
     use std::collections::HashMap;
 
-    use crate::geometry::mesh::tests::icosphere;
-
-    /// Torus about z with major radius `big`, minor radius `small`, `n` x `m` quads.
-    fn torus(big: f64, small: f64, n: usize, m: usize) -> TriMesh {
-        let mut v = Vec::new();
-        for i in 0..n {
-            let u = i as f64 / n as f64 * std::f64::consts::TAU;
-            for j in 0..m {
-                let w = j as f64 / m as f64 * std::f64::consts::TAU;
-                let r = big + small * w.cos();
-                v.push(Point::new(r * u.cos(), r * u.sin(), small * w.sin()));
-            }
-        }
-        let id = |i: usize, j: usize| (i % n) * m + j % m;
-        let mut f = Vec::new();
-        for i in 0..n {
-            for j in 0..m {
-                let (a, b, c, d) = (id(i, j), id(i + 1, j), id(i + 1, j + 1), id(i, j + 1));
-                f.push([a, b, c]);
-                f.push([a, c, d]);
-            }
-        }
-        TriMesh::new(v, f).unwrap()
-    }
+    use crate::geometry::mesh::tests::{icosphere, torus};
 
     fn translated(mesh: &TriMesh, d: Vec3) -> TriMesh {
         TriMesh::new(

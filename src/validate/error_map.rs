@@ -40,6 +40,11 @@ pub struct ErrorMap {
     pub reference_to_skin: Vec<f64>,
     /// Statistics of the distances of reference vertices to the skin surface.
     pub reference_to_skin_stats: SurfaceError,
+    /// Per measured reference vertex: the skin vertex nearest to its closest point on the skin
+    /// (the corner of the closest face with the largest barycentric weight), so that reference
+    /// points can be given the skin's regions.
+    #[serde(skip)]
+    pub reference_nearest_skin_vertex: Vec<usize>,
     /// Reference vertices in the mesh (the statistics above cover `reference_to_skin_stats.n`
     /// of them, every `stride`-th).
     pub reference_vertices: usize,
@@ -59,14 +64,32 @@ pub fn error_map_with(skin: &TriMesh, reference: &TriMesh, max_reverse: usize) -
         || {
             let stride = reference.n_vertices().div_ceil(max_reverse.max(1)).max(1);
             let pts: Vec<Point> = reference.vertices.iter().step_by(stride).copied().collect();
-            (distances_to_surface(&pts, &AabbTree::new(skin)), stride)
+            let closest = AabbTree::new(skin).closest_points(&pts);
+            let distances: Vec<f64> = closest
+                .iter()
+                .map(|c| c.as_ref().map_or(f64::INFINITY, |c| c.distance))
+                .collect();
+            let nearest: Vec<usize> = closest
+                .iter()
+                .map(|c| {
+                    c.as_ref().map_or(usize::MAX, |c| {
+                        let k = (0..3)
+                            .max_by(|&a, &b| c.barycentric[a].total_cmp(&c.barycentric[b]))
+                            .unwrap_or(0);
+                        skin.faces[c.face][k]
+                    })
+                })
+                .collect();
+            ((distances, nearest), stride)
         },
     );
+    let (reverse, nearest) = reverse;
     ErrorMap {
         skin_to_reference_stats: SurfaceError::of(&forward),
         skin_to_reference: forward,
         reference_to_skin_stats: SurfaceError::of(&reverse),
         reference_to_skin: reverse,
+        reference_nearest_skin_vertex: nearest,
         reference_vertices: reference.n_vertices(),
         reference_stride: stride,
     }

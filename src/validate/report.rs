@@ -197,18 +197,8 @@ pub fn check_reference_scale(reference: &TriMesh, skin: &TriMesh, path: &Path) -
     if (1.0 / REFERENCE_SCALE_RATIO..=REFERENCE_SCALE_RATIO).contains(&ratio) {
         return Ok(());
     }
-    let likely = [
-        Units::Millimetres,
-        Units::Centimetres,
-        Units::Inches,
-        Units::Metres,
-    ]
-    .into_iter()
-    .min_by(|a, b| {
-        let off = |u: &Units| (ratio * u.to_mm()).ln().abs();
-        off(a).total_cmp(&off(b))
-    })
-    .unwrap_or(Units::Millimetres);
+    // The reference's numbers, read in a unit u, should measure the skin's diagonal.
+    let likely = Units::likely(r, s);
     Err(Error::input(
         path,
         format!(
@@ -310,6 +300,7 @@ pub fn validate_subject(
         .map(|m| -> Result<SurfaceRegions> {
             surface_regions(
                 &m.skin_to_reference,
+                Some((&m.reference_to_skin, &m.reference_nearest_skin_vertex)),
                 &hand_regions(subject.hand)?,
                 &skin_path,
             )

@@ -176,8 +176,26 @@ pub fn key_figures(v: &SubjectValidation) -> Vec<(String, String, String)> {
         k.push((
             "reference → skin".into(),
             format!("{:.2} mm", r.mean_mm),
-            format!("mean distance; max {:.2} mm", r.max_mm),
+            format!(
+                "mean distance over the whole reference, forearm included; max {:.2} mm",
+                r.max_mm
+            ),
         ));
+        if let Some(h) = v
+            .surface_regions
+            .as_ref()
+            .and_then(|r| r.reverse_hand_distal_of_wrist.as_ref())
+        {
+            k.push((
+                "reference → skin, distal of the wrist".into(),
+                format!("{:.2} mm", h.mean_mm),
+                format!(
+                    "reference points whose nearest skin vertex is not in the wrist region; max \
+                     {:.2} mm",
+                    h.max_mm
+                ),
+            ));
+        }
     }
     if v.link.is_some() {
         k.push((

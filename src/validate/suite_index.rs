@@ -109,11 +109,19 @@ fn surf(v: &SubjectValidation) -> (f64, f64) {
         .map_or((f64::NAN, f64::NAN), |s| (s.mean_mm, s.max_mm))
 }
 
-/// Mean and max of `reference → skin` (NaN without `reference.ply`).
+/// Mean and max of `reference → skin` over the hand distal of the wrist (the whole reference
+/// when the regions are not known; NaN without `reference.ply`).
 fn surf_reverse(v: &SubjectValidation) -> (f64, f64) {
-    v.surface_reverse
+    let distal = v
+        .surface_regions
         .as_ref()
-        .map_or((f64::NAN, f64::NAN), |s| (s.mean_mm, s.max_mm))
+        .and_then(|r| r.reverse_hand_distal_of_wrist.as_ref())
+        .map(|s| (s.mean_mm, s.max_mm));
+    distal.unwrap_or_else(|| {
+        v.surface_reverse
+            .as_ref()
+            .map_or((f64::NAN, f64::NAN), |s| (s.mean_mm, s.max_mm))
+    })
 }
 
 fn f2(x: f64) -> String {
@@ -245,7 +253,7 @@ pub fn suite_index_html(rows: &[SuiteRow], dir: &Path) -> String {
     b.push_str("</div>\n");
 
     b.push_str("<section id=\"subjects\"><h2>Every subject</h2><p class=\"lead\">Each row links to the subject's full report (written under <code>validation/subjects/</code>, which is not committed: run the suite to get them). The picture is the subject's error map (dorsal and palmar views), coloured from 0 to the scale top in the next column.</p>");
-    b.push_str("<div class=\"scroll\"><table class=\"suite\"><thead><tr><th>subject</th><th>error map</th><th class=\"num\">scale top (mm)</th><th class=\"num\">skin → ref. mean / max (mm)</th><th class=\"num\">ref. → skin mean / max (mm)</th><th class=\"num\">median centre error 3-DOF / 1-DOF (mm)</th><th class=\"num\">median axis error (°)</th><th class=\"num\">dimensions skin − given (mm)</th><th class=\"num\">time reconstruct / validate (s)</th></tr></thead><tbody>\n");
+    b.push_str("<div class=\"scroll\"><table class=\"suite\"><thead><tr><th>subject</th><th>error map</th><th class=\"num\">scale top (mm)</th><th class=\"num\">skin → ref. mean / max (mm)</th><th class=\"num\">ref. → skin mean / max, hand distal of the wrist (mm)</th><th class=\"num\">median centre error 3-DOF / 1-DOF (mm)</th><th class=\"num\">median axis error (°)</th><th class=\"num\">dimensions skin − given (mm)</th><th class=\"num\">time reconstruct / validate (s)</th></tr></thead><tbody>\n");
     for r in rows {
         let v = r.validation;
         let (c3, c1, ax) = link_medians(v);

@@ -291,6 +291,10 @@ pub struct SurfaceRegions {
     pub regions: Vec<RegionError>,
     /// Every region but the wrist together: the hand distal of the wrist.
     pub hand_distal_of_wrist: RegionError,
+    /// The other direction over the same part of the hand: reference points whose nearest skin
+    /// vertex is not in the wrist region, to the skin. A reference that reaches further up the
+    /// forearm than the skin would otherwise count its whole forearm as skin error.
+    pub reverse_hand_distal_of_wrist: Option<RegionError>,
 }
 
 impl SurfaceRegions {
@@ -301,10 +305,12 @@ impl SurfaceRegions {
 }
 
 /// Statistics of the per-vertex `distances` (skin vertex -> reference surface) in each region
-/// of `regions` (one per vertex). Errors name `skin` when the counts differ: the skin is then
-/// not homologous to the template.
+/// of `regions` (one per vertex), and, given `reverse` (reference point -> skin distance, and
+/// the nearest skin vertex of each), the reverse distances of the hand distal of the wrist.
+/// Errors name `skin` when the counts differ: the skin is then not homologous to the template.
 pub fn surface_regions(
     distances: &[f64],
+    reverse: Option<(&[f64], &[usize])>,
     regions: &[Region],
     skin: &Path,
 ) -> Result<SurfaceRegions> {
@@ -336,6 +342,15 @@ pub fn surface_regions(
             "hand distal of the wrist",
             &pick(&|x| x != Region::Wrist),
         ),
+        reverse_hand_distal_of_wrist: reverse.map(|(d, nearest)| {
+            let kept: Vec<f64> = d
+                .iter()
+                .zip(nearest)
+                .filter(|(_, &v)| regions.get(v).is_some_and(|r| *r != Region::Wrist))
+                .map(|(d, _)| *d)
+                .collect();
+            RegionError::of("reference to skin, hand distal of the wrist", &kept)
+        }),
     })
 }
 
@@ -442,14 +457,20 @@ mod tests {
             Region::Wrist,
         ];
         let d = [10.0, 1.0, 3.0, 5.0, 20.0];
-        let s = surface_regions(&d, &regions, Path::new("skin.obj")).unwrap();
+        // Reference points: two near skin vertex 0 (wrist), one near 1, one near 3, one with
+        // an out-of-range vertex (no region: left out).
+        let rev = [30.0, 40.0, 2.0, 4.0, 9.0];
+        let nearest = [0, 4, 1, 3, usize::MAX];
+        let s = surface_regions(&d, Some((&rev, &nearest)), &regions, Path::new("skin.obj")).unwrap();
         let f = s.get(Region::Fingers).unwrap();
         assert_eq!((f.vertices, f.mean_mm, f.max_mm), (2, 2.0, 3.0));
         assert_eq!(s.get(Region::Wrist).unwrap().mean_mm, 15.0);
         assert_eq!(s.get(Region::Hypothenar).unwrap().vertices, 0);
         let h = &s.hand_distal_of_wrist;
         assert_eq!((h.vertices, h.mean_mm, h.max_mm), (3, 3.0, 5.0));
-        let e = surface_regions(&d[..4], &regions, Path::new("out/skin.obj")).unwrap_err();
+        let r = s.reverse_hand_distal_of_wrist.as_ref().unwrap();
+        assert_eq!((r.vertices, r.mean_mm, r.max_mm), (2, 3.0, 4.0));
+        let e = surface_regions(&d[..4], None, &regions, Path::new("out/skin.obj")).unwrap_err();
         assert!(e.to_string().contains("out/skin.obj"), "{e}");
     }
 }
