@@ -83,6 +83,12 @@ pub fn place_landmarks(
         ("WRIST_ULN", Joint::Wrist, -wrist_radial, 50.0),
     ] {
         let jf = sk.joint(j);
+        // A thick hand holds its metacarpal heads deeper than the radius allows for: the
+        // neighbourhood reaches at least 6 mm past the skin nearest the joint.
+        let deepest = tree
+            .closest_point(&jf.centre)
+            .map_or(0.0, |c| c.distance + 6.0);
+        let radius = f64::max(radius, deepest);
         let v =
             caliper_extreme(skin, &jf.centre, &jf.z(), radius, &dir, &keep).ok_or_else(|| {
                 Error::invalid(format!("procedural body: no skin for landmark {name}"))
