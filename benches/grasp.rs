@@ -92,7 +92,7 @@ fn grasp_bench(c: &mut Criterion) {
     });
     gr.measurement_time(std::time::Duration::from_secs(110));
     gr.bench_function("placement_search_1000", |b| {
-        b.iter(|| placement_search(&hand, &part, &plan, 0.5, 1, 1000, 1e9, true).unwrap())
+        b.iter(|| placement_search(&hand, &part, &plan, 0.5, 1, 1000, 1e9).unwrap())
     });
     gr.finish();
 }

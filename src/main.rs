@@ -14,9 +14,13 @@ use std::process::ExitCode;
     long_about = None
 )]
 struct Cli {
-    /// Print nothing but errors (no progress bars, no summaries).
-    #[arg(long, short, global = true)]
+    /// Print nothing but errors (no progress bars, no summaries, no warnings).
+    #[arg(long, short, global = true, conflicts_with = "verbose")]
     quiet: bool,
+    /// More detail on stderr: -v debug (also the jobs a command runs inside itself), -vv trace.
+    /// RUST_LOG=LEVEL (off, error, warn, info, debug, trace) overrides -q and -v.
+    #[arg(long, short, global = true, action = clap::ArgAction::Count)]
+    verbose: u8,
     #[command(subcommand)]
     command: Command,
 }
@@ -140,12 +144,10 @@ enum Command {
 
 fn main() -> ExitCode {
     let args = Cli::parse();
-    let log = cli::Log::new(args.quiet);
+    cli::logger::init(args.quiet, args.verbose);
     let result = match args.command {
-        Command::Demo { out } => cli::demo(&out, &log),
-        Command::Template { out } => {
-            cli::template(&out, &[Side::Right, Side::Left], &log).map(|_| ())
-        }
+        Command::Demo { out } => cli::demo(&out),
+        Command::Template { out } => cli::template(&out, &[Side::Right, Side::Left]).map(|_| ()),
         Command::Synth {
             seed,
             out,
@@ -156,7 +158,7 @@ fn main() -> ExitCode {
             duration,
             force,
         } => cli::synth_options(seed, &preset, &hand, &posture, &body, duration)
-            .and_then(|opts| cli::synth(&opts, &out, force, &log)),
+            .and_then(|opts| cli::synth(&opts, &out, force)),
         Command::Reconstruct {
             subject_dir,
             out,
@@ -164,18 +166,14 @@ fn main() -> ExitCode {
             no_template_posing,
             centre_weight,
         } => cli::skin_options(&fit_resolution, !no_template_posing, centre_weight)
-            .and_then(|opts| cli::reconstruct_with(&subject_dir, &out, &opts, &log))
+            .and_then(|opts| cli::reconstruct_with(&subject_dir, &out, &opts))
             .map(|_| ()),
         Command::Validate {
             subject_dir,
             report,
             suite: true,
             ..
-        } => cli::validate_suite(
-            &subject_dir,
-            &report.unwrap_or_else(|| "reports".into()),
-            &log,
-        ),
+        } => cli::validate_suite(&subject_dir, &report.unwrap_or_else(|| "reports".into())),
         Command::Validate {
             subject_dir,
             model,
@@ -184,7 +182,7 @@ fn main() -> ExitCode {
         } => {
             let model = model.unwrap_or_else(|| subject_dir.join("out"));
             let report = report.unwrap_or_else(|| model.join("report"));
-            cli::validate(&subject_dir, &model, &report, &log).map(|_| ())
+            cli::validate(&subject_dir, &model, &report).map(|_| ())
         }
         Command::Pose {
             model,
@@ -192,34 +190,30 @@ fn main() -> ExitCode {
             out,
             keep_angles,
             plain_skinning,
-        } => cli::pose(
+        } => cli::pose_with(
             &model,
             &pose.to_string_lossy(),
             &out,
-            keep_angles,
-            plain_skinning,
-            &log,
-        ),
+            &cli::PoseOptions {
+                resolve_contacts: !keep_angles,
+                preserve_volume: !plain_skinning,
+            },
+        )
+        .map(|_| ()),
         Command::Grasp { scene, model, out } => {
-            ergohand::grasp::grasp_command(&scene, model.as_deref(), &out, log.quiet()).map(|r| {
-                log.info(format!(
-                    "grasp: force closure {}, epsilon {:.4}, volume {:.3e}, holds {}, contact {:.0} mm²; wrote {}",
-                    r.force_closure, r.epsilon, r.volume, r.holds, r.total_contact_area_mm2, out.display()
-                ))
-            })
+            cli::grasp(&scene, model.as_deref(), &out).map(|_| ())
         }
         Command::Batch {
             subjects_dir,
             out,
             jobs,
-        } => ergohand::batch::batch_command(
+        } => cli::batch(
             &subjects_dir,
             &out,
-            &ergohand::batch::BatchOptions {
+            &cli::batch::BatchOptions {
                 jobs,
                 ..Default::default()
             },
-            &log,
         )
         .map(|_| ()),
     };

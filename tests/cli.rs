@@ -656,19 +656,18 @@ fn grasp_writes_report_glb_and_map_and_refuses_bad_scenes() {
 /// hand the template reaches by construction.
 #[test]
 fn the_template_cannot_reach_the_procedural_body() {
-    use ergohand::cli::{self, Log};
+    use ergohand::cli;
     use ergohand::validate::thresholds::Figures;
     let tmp = tempfile::tempdir().unwrap();
-    let quiet = Log::new(true);
     let mut opts =
         cli::synth_options(5, "clean", "right", "template", "procedural", Some(15.0)).unwrap();
     opts.voxel_mm = 0.7;
     let sdir = tmp.path().join("P");
     let model = sdir.join("out");
-    cli::synth(&opts, &sdir, false, &quiet).unwrap();
+    cli::synth(&opts, &sdir, false).unwrap();
     assert!(!sdir.join("truth_skin.ply").exists());
-    cli::reconstruct(&sdir, &model, &quiet).unwrap();
-    let v = cli::validate(&sdir, &model, &model.join("report"), &quiet).unwrap();
+    cli::reconstruct(&sdir, &model).unwrap();
+    let v = cli::validate(&sdir, &model, &model.join("report")).unwrap();
     let (link, surface) = v.against_references(&sdir).unwrap();
     let figures = Figures::measure(link, surface, &v.dimensions, &model).unwrap();
     eprintln!("procedural seed 5: {:?}", figures.0);

@@ -35,11 +35,13 @@ use super::IndividualHand;
 use crate::anatomy::Link;
 use crate::error::{Error, Result};
 use crate::geometry::{Point, TriMesh, Vec3};
+use crate::io::Units;
 use crate::skeleton::forward_kinematics::link_transforms;
 use crate::skeleton::{Pose, Skeleton};
 use crate::template::{LinkWeights, TemplateHand};
 use crate::tet::{place_boundary_nodes, SurfaceBinding, TemplateTet};
 use nalgebra::{DMatrix, DVector, Isometry3};
+use std::path::Path;
 
 /// Options of [`preserve_segment_volumes`].
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -378,4 +380,29 @@ impl VolumeRig {
         };
         Ok((skin, nodes, correction))
     }
+}
+/// The [`VolumeRig`] of the `reconstruct` folder `model_dir`: its tetrahedral mesh
+/// (`tet.vtk`, homologous to the template's) with the template's node weights. Errors naming
+/// `tet.vtk` when it is missing or not homologous to the template's tet mesh (made by another
+/// version or other stuffing parameters: re-run reconstruct).
+pub fn volume_rig(hand: &IndividualHand, model_dir: &Path) -> Result<VolumeRig> {
+    let path = model_dir.join("tet.vtk");
+    let tet = crate::io::vtk::read_vtk(&path, Units::Millimetres)?;
+    let template = crate::template::load_template(hand.side)?;
+    let prepared = crate::tet::TemplateTet::prepare(&template, None)?;
+    if tet.n_nodes() != prepared.tet.n_nodes() || tet.tets != prepared.tet.tets {
+        return Err(Error::input(
+            &path,
+            format!(
+                "{} nodes / {} tetrahedra, not homologous to the {} template's tet mesh ({} / {}); \
+                 re-run reconstruct",
+                tet.n_nodes(),
+                tet.n_tets(),
+                hand.side,
+                prepared.tet.n_nodes(),
+                prepared.tet.n_tets()
+            ),
+        ));
+    }
+    VolumeRig::new(&template, &prepared, tet.nodes)
 }
