@@ -1,4 +1,4 @@
-//! Issue 9's accuracy regression check, on the CI subset of the validation suite: the subjects
+//! The accuracy regression check, on the CI subset of the validation suite: the subjects
 //! of `[ci.subject.*]` in `validation/thresholds.toml` are simulated from `validation/suite.toml`
 //! with the subset's shorter trials, reconstructed and validated as `ergohand validate` does;
 //! the test fails naming the subject and the figure of every figure worse than its threshold.

@@ -20,25 +20,27 @@ use std::path::{Path, PathBuf};
 fn layer(module: &str) -> Option<u32> {
     Some(match module {
         // The base: shared by every stage, knowing none of them.
-        "error" | "rng" | "anatomy" | "geometry" | "io" | "render" | "measure" => 0,
-        // The link tree, its frames and kinematics, and the generic hand on top of it.
+        "error" | "rng" | "anatomy" | "geometry" | "io" | "render" => 0,
+        // The link tree, its frames and kinematics; the generic hand on it; the caliper
+        // dimensions measured on any skin by their definitions (in the links' frames).
         "skeleton" => 1,
         "template" => 2,
+        "measure" => 3,
         // The stages of the method, in the order the data flows.
-        "mocap" => 3,
-        "link" => 4,
-        "skin" => 5,
-        "tet" => 6,
-        "pose" => 7,
-        "grasp" => 8,
+        "mocap" => 4,
+        "link" => 5,
+        "skin" => 6,
+        "tet" => 7,
+        "pose" => 8,
+        "grasp" => 9,
         // Readers of what the stages produce: the simulator and the validation.
-        "synth" => 9,
-        "validate" => 10,
+        "synth" => 10,
+        "validate" => 11,
         // The command jobs, over everything.
-        "cli" => 11,
+        "cli" => 12,
         // The crate root (re-exports) and the binary.
-        "lib" => 12,
-        "main" => 13,
+        "lib" => 13,
+        "main" => 14,
         _ => return None,
     })
 }
@@ -631,8 +633,8 @@ fn top_level_modules_import_down_the_stage_order_only() {
                 problems.push(format!(
                     "{} imports `{path}`: `{from}` may not import `{to}` (stage order: {})",
                     c.files[i].path.display(),
-                    "base (error, rng, anatomy, geometry, io, render, measure) -> skeleton -> \
-                     template -> mocap -> link -> skin -> tet -> pose -> grasp -> synth, \
+                    "base (error, rng, anatomy, geometry, io, render) -> skeleton -> template \
+                     -> measure -> mocap -> link -> skin -> tet -> pose -> grasp -> synth -> \
                      validate -> cli -> main"
                 ));
             }

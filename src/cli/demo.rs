@@ -20,8 +20,8 @@ pub fn default_subject_options() -> SynthOptions {
 
 /// `ergohand demo`: every stage that exists, on the default subject, into `out`.
 ///
-/// Today: the template (issue 2), the simulated default subject (issue 3), its link model
-/// (issue 4) and the link model's validation against the truth; the skin, tetrahedral mesh,
+/// Today: the template, the simulated default subject, its link model
+/// and the link model's validation against the truth; the skin, tetrahedral mesh,
 /// posing and grasping join as they are built.
 pub fn demo(out: &Path) -> Result<()> {
     let t0 = Instant::now();

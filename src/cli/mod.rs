@@ -7,6 +7,7 @@
 //! documented stdout output (the tables of `validate`, the demo's summary) is printed here,
 //! when info is on.
 
+pub mod args;
 pub mod batch;
 pub mod demo;
 pub mod grasp;

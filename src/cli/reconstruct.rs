@@ -6,7 +6,7 @@ use crate::anatomy::Side;
 use crate::error::{Error, Result};
 use crate::io::output_paths::{check_output_dir, Inputs, MODEL_FILES};
 use crate::io::{atomic, obj, Units};
-use crate::skin::pipeline::SkinOptions;
+use crate::skin::pipeline::{FitResolution, SkinOptions};
 use crate::template;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -62,9 +62,10 @@ struct SkinSummary {
     degenerate_faces: usize,
 }
 
-/// Skin options from the command line's words, checked.
+/// Skin options from the command line's values; an error naming `--centre-weight` unless it is
+/// a finite weight >= 0.
 pub fn skin_options(
-    resolution: &str,
+    resolution: FitResolution,
     pose_template: bool,
     centre_weight: f64,
 ) -> Result<SkinOptions> {
@@ -74,9 +75,7 @@ pub fn skin_options(
         )));
     }
     Ok(SkinOptions {
-        resolution: resolution
-            .parse()
-            .map_err(|e: Error| Error::invalid(format!("--fit-resolution: {e}")))?,
+        resolution,
         pose_template,
         centre_weight,
         ..SkinOptions::default()
@@ -88,10 +87,12 @@ pub fn reconstruct(subject_dir: &Path, out: &Path) -> Result<crate::link::LinkMo
     reconstruct_with(subject_dir, out, &SkinOptions::default())
 }
 
-/// `ergohand reconstruct SUBJECT_DIR --out OUT`: the pipeline of the seed paper as far as it is
-/// built: the link model (section 3.4), the skin (3.5, with issue 10's posing and centre terms),
-/// section 3.6 applied to the link model; writes `link_model.json`, `skin_low.obj`, `skin.obj`
-/// and `report.json`. Nothing is written unless every stage succeeds.
+/// `ergohand reconstruct SUBJECT_DIR --out OUT`: the pipeline of the seed paper: the link
+/// model (section 3.4), the skin (3.5, with the template first posed onto the link model and
+/// joint-centre terms), section 3.6 applied to the link model, the tetrahedral mesh (3.7) and
+/// the skinned hand; writes the seven files of [`MODEL_FILES`] (`link_model.json`,
+/// `skin_low.obj`, `skin.obj`, `tet.vtk`, `tet.msh`, `hand.glb`, `report.json`). Nothing is
+/// written unless every stage succeeds.
 pub fn reconstruct_with(
     subject_dir: &Path,
     out: &Path,
@@ -226,7 +227,7 @@ fn reconstruct_stages<'p>(
     let (template_tet, t_prepare) = prepared_tet()?;
     let (tet, tet_report) = template_tet.deform(&skin.high)?;
     let t_tet = t2.elapsed().as_secs_f64();
-    // The skinned individual hand (issue 7).
+    // The skinned individual hand.
     let t3 = Instant::now();
     let hand = crate::pose::IndividualHand::from_skin(
         template,

@@ -1,32 +1,28 @@
 //! `ergohand synth`: a simulated subject folder from the command's options.
 
 use crate::anatomy::Side;
-use crate::error::{Error, Result};
+use crate::error::Result;
 use crate::io::output_paths::{check_output_dir, Inputs};
-use crate::synth::{self, SynthOptions};
+use crate::synth::{self, Body, Posture, Preset, SynthOptions};
 use std::path::Path;
 use std::time::Instant;
 
-/// Options of `ergohand synth` from its command-line words; errors name the option.
+/// Options of `ergohand synth` from its command-line values.
 pub fn synth_options(
     seed: u64,
-    preset: &str,
-    hand: &str,
-    posture: &str,
-    body: &str,
+    preset: Preset,
+    hand: Side,
+    posture: Posture,
+    body: Body,
     duration: Option<f64>,
-) -> Result<SynthOptions> {
-    let bad = |opt: &str, e: String| Error::invalid(format!("--{opt}: {e}"));
-    let mut o = SynthOptions::new(seed, preset.parse().map_err(|e| bad("preset", e))?);
-    o.hand = match hand {
-        "right" => Side::Right,
-        "left" => Side::Left,
-        other => return Err(bad("hand", format!("'{other}' is not right or left"))),
-    };
-    o.posture = posture.parse().map_err(|e| bad("posture", e))?;
-    o.body = body.parse().map_err(|e| bad("body", e))?;
-    o.duration_s = duration;
-    Ok(o)
+) -> SynthOptions {
+    SynthOptions {
+        hand,
+        posture,
+        body,
+        duration_s: duration,
+        ..SynthOptions::new(seed, preset)
+    }
 }
 
 /// `ergohand synth`: simulate a subject and write its folder.

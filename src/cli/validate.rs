@@ -259,6 +259,6 @@ pub fn validate_suite(dir: &Path, report: &Path) -> Result<()> {
         print!("{md}");
         log::info!("open {}", report.join("index.html").display());
     }
-    // Issue 9's regression check: an error naming each figure worse than its threshold.
+    // The regression check: an error naming each figure worse than its threshold.
     crate::validate::thresholds::check_suite(&dir.join(crate::validate::thresholds::FILE), &figures)
 }

@@ -1,4 +1,4 @@
-//! Grasp and contact checks of a posed hand on a CAD part (issue 8; spec section 4, `grasp`).
+//! Grasp and contact checks of a posed hand on a CAD part (spec section 4, `grasp`).
 //!
 //! A scene ([`scene`]) names a part, its pose, friction and mass, a hand and a grasp type.
 //! [`autograsp`] closes the hand on the part from an approach pose (GraspIt's autograsp,
@@ -70,7 +70,7 @@ pub fn load_hand(model: Option<&Path>, side: crate::anatomy::Side) -> Result<Ski
     }
 }
 
-/// One evaluation of a grasp (issue 8's speed goal): `hand` posed in `pose` into `posed` (a
+/// One evaluation of a grasp (the speed goal): `hand` posed in `pose` into `posed` (a
 /// reused buffer), its contacts with `part` ([`contacts`], default options, `areas` from
 /// [`vertex_areas`]) and their force closure and Ferrari-Canny epsilon with friction `mu`
 /// ([`quality::grasp_epsilon`], torques over the part's maximum radius; the volume quality,
@@ -593,7 +593,7 @@ mod tests {
         scene::read_scene(&path).unwrap()
     }
 
-    /// The shipped bottle scene (issue 8's 60 mm bottle in a power grasp) reaches force
+    /// The shipped bottle scene (the 60 mm bottle in a power grasp) reaches force
     /// closure and holds in rapier with the default hand.
     #[test]
     fn shipped_bottle_scene_is_force_closure_and_holds() {

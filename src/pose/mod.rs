@@ -1,4 +1,4 @@
-//! Posing the individual hand (issue 7): skinning weights on the individual skin, linear blend
+//! Posing the individual hand: skinning weights on the individual skin, linear blend
 //! and dual-quaternion skinning of any point set, joint angles from pose files and built-in
 //! poses, and the skinned hand as glTF.
 //!

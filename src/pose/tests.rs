@@ -437,7 +437,7 @@ fn explore() {
     }
 }
 
-/// Issue 7's "the same deformation applied to the tetrahedral mesh's nodes": the template's
+/// The requirement "the same deformation applied to the tetrahedral mesh's nodes": the template's
 /// tet mesh posed with [`tet_node_weights`] reproduces the rest mesh at zero angles, keeps its
 /// surface on the posed skin (each boundary node at the same barycentric point of the posed
 /// skin face it is bound to, before the exact placement within the skinning's blend error),
@@ -519,7 +519,7 @@ fn tet_nodes_follow_the_skin() {
     }
 }
 
-/// Issue 7's fist goal on individual hands. The built-in `fist` is a set of angles; on a
+/// The fist goal on individual hands. The built-in `fist` is a set of angles; on a
 /// broader or differently built hand the same angles close digits into each other, even on
 /// the *true* hand of a simulated subject (seed 2: the thumb enters the index by about 10 mm;
 /// seed 72: the ring the middle by about 7 mm), so this is not a reconstruction error.

@@ -1,5 +1,4 @@
-//! Segment-volume preservation for dual-quaternion skinning (issue 7, "volume change of each
-//! finger segment within 5 % for dual-quaternion skinning").
+//! Segment-volume preservation for dual-quaternion skinning.
 //!
 //! # Why DQS alone loses volume at the finger joints
 //! Where one joint rotates by θ about axis `a` through its centre and the skinning blends two
@@ -29,7 +28,7 @@
 //! The same field then moves the skin's vertices, and the mesh's boundary nodes are placed on
 //! that skin ([`super::pose_tet_nodes`]).
 
-use super::quality::{finger_volume_changes, segment_volumes, tet_segments};
+use super::quality::{finger_volume_changes, is_finger_segment, segment_volumes, tet_segments};
 use super::skinning::{SkinBinding, Skinning};
 use super::IndividualHand;
 use crate::anatomy::Link;
@@ -73,16 +72,6 @@ pub struct VolumeCorrection {
     pub worst_before: f64,
     /// And after.
     pub worst_after: f64,
-}
-
-/// Whether link `l` is a finger segment (a phalanx or the thumb metacarpal), the segments whose
-/// volume is kept.
-pub fn is_finger_segment(l: usize) -> bool {
-    Link::ALL
-        .get(l)
-        .and_then(|l| l.joint())
-        .and_then(|j| j.finger())
-        .is_some()
 }
 
 /// Per point, the bulge basis of the module's field: the mixedness `1 − max w` and, per finger
