@@ -6,7 +6,7 @@
 //! parry queries; [`quality`] computes force closure and the Ferrari-Canny epsilon and volume
 //! qualities (Ferrari & Canny 1992); [`hold`] checks in rapier that the part stays in the hand
 //! under gravity from six directions. [`run_scene`] runs a scene; the `grasp` command
-//! ([`crate::cli::grasp`]) writes its `grasp.json`, `grasp.glb` (posed hand and part, contact
+//! (`ergohand grasp`) writes its `grasp.json`, `grasp.glb` (posed hand and part, contact
 //! map as `COLOR_0`) and `contact_map.png`.
 
 pub mod autograsp;
@@ -271,7 +271,7 @@ fn grasp_from(
     })
 }
 
-/// Evaluate a scene with `hand` (see [`crate::cli::grasp`]); the part's warnings (open mesh,
+/// Evaluate a scene with `hand` (as `ergohand grasp` does); the part's warnings (open mesh,
 /// size against a hand) are logged as soon as the part is read, and kept in the report.
 pub fn run_scene(scene: &Scene, hand: &dyn PosableHand) -> Result<GraspOutcome> {
     let mut timings = Timings::default();

@@ -15,33 +15,21 @@
 //! # Defaults and why
 //! Weights: the template's, carried by homology ([`WeightMethod::Template`]). They are the
 //! artist's weights of the generic hand, painted for exactly this mesh, with the joint creases
-//! and the wrist band; bone heat on the skin ([`WeightMethod::BoneHeat`]) is available. Measured
-//! in `fist` (contacts resolved as `pose` does) by `tests::fist_quality_figures`; volume change
-//! of the 15 finger segments is that of their tissue in the tetrahedral mesh
-//! ([`quality::segment_volumes`]):
-//!
-//! | hand, weights, skinning | finger-finger penetration | segments within 5 % | mean abs. change | worst |
-//! | --- | --- | --- | --- | --- |
-//! | template, template, LBS | 0.00 mm | 6 / 15 | 9.7 % | M_PROX −21.9 % |
-//! | template, template, DQS | 0.00 mm | 12 / 15 | 4.5 % | M_PROX −18.1 % |
-//! | template, template, DQS + volume | 0.66 mm | 15 / 15 | 0.1 % | L_PROX −0.3 % |
-//! | template, heat, DQS | 0.63 mm | 10 / 15 | 5.8 % | M_PROX −19.7 % |
-//! | template, heat, DQS + volume | 2.22 mm | 15 / 15 | 0.1 % | M_PROX −0.2 % |
-//! | seed 72 true hand, template, DQS + volume | 0.72 mm | 15 / 15 | 0.1 % | L_PROX −0.3 % |
-//! | seed 72 reconstructed (30-s trials), DQS | 0.64 mm | 5 / 15 | 7.4 % | M_PROX −20.8 % |
-//! | seed 72 reconstructed (30-s trials), DQS + volume | 1.90 mm | 15 / 15 | 0.1 % | R_PROX −0.3 % |
+//! and the wrist band, and they keep the fingers apart better than bone heat on the skin
+//! ([`WeightMethod::BoneHeat`], available).
 //!
 //! Dual-quaternion skinning alone loses the proximal phalanges' tissue in a fist because the
 //! joints' axes lie dorsal of the fingers' cross-sections (derivation in [`volume_correction`]);
 //! the correction, on by default for baked outputs (`.obj`, `.vtk`, `.msh`; `--plain-skinning`
 //! turns it off), swells the blended band around each joint just enough to keep every segment's
-//! volume. Template weights keep the fingers apart better than heat weights.
+//! volume, measured as the tissue of the tetrahedral mesh ([`quality::segment_volumes`]).
+//! `tests::fist_quality_figures` measures both choices in `fist`; the figures are in the
+//! README ("Posing").
 //!
 //! Skinning of files: dual quaternions ([`Skinning::DualQuaternion`]), which do not collapse a
 //! joint's cross-section; grasp search uses the LBS fast path ([`SkinBinding::linear_into`],
-//! about 2,900 poses/s including forward kinematics for the 18,514-vertex skin on a loaded
-//! 2-core machine, `benches/pose.rs`). A GLB is skinned by the viewer, which is LBS by the
-//! glTF specification.
+//! timed by `benches/pose.rs`). A GLB is skinned by the viewer, which is LBS by the glTF
+//! specification.
 //!
 //! [`skeleton::forward_kinematics::link_transforms`]: crate::skeleton::forward_kinematics::link_transforms
 

@@ -472,7 +472,6 @@ mod tests {
     use super::*;
     use crate::geometry::mesh::tests::cuboid;
     use crate::geometry::Vec3;
-    use std::collections::HashMap;
 
     use crate::geometry::mesh::tests::{icosphere, torus};
 
