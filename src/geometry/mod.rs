@@ -3,6 +3,7 @@
 //! sections.
 
 pub mod closest_point;
+pub mod convex_hull_6d;
 pub mod horn;
 pub mod loop_subdivision;
 pub mod marching_tetrahedra;
