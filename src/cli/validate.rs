@@ -2,7 +2,7 @@
 
 use super::reconstruct::reconstruct_job;
 use super::{create_dir, Voice};
-use crate::error::Result;
+use crate::error::{Error, Result};
 use crate::io::atomic;
 use crate::skin::pipeline::SkinOptions;
 use crate::synth;
@@ -126,7 +126,13 @@ pub fn validate_suite(dir: &Path, report: &Path) -> Result<()> {
         pb.set_message(name.clone());
         let sdir = dir.join("subjects").join(name);
         if !synth::stamp::is_current(&sdir, opts) {
-            let subject = synth::simulate(opts)?;
+            // A simulation error names no file: the suite entry is the input at fault.
+            let subject = synth::simulate(opts).map_err(|e| match e {
+                Error::Invalid(m) => {
+                    Error::input(dir.join("suite.toml"), format!("subject '{name}': {m}"))
+                }
+                other => other,
+            })?;
             synth::write_subject(&sdir, &subject, true)?;
             synth::stamp::write(&sdir, opts)?;
         }
