@@ -1,4 +1,4 @@
-//! Grasp stage (issue 8's speed goals): one evaluation (pose by linear blend skinning +
+//! Grasp stage (the speed goals): one evaluation (pose by linear blend skinning +
 //! contacts + force closure and epsilon) of the 37k-face template hand against a
 //! ~100k-triangle bottle (< 5 ms), its contact query and its epsilon alone (the nearest-facet
 //! search) against the whole hull's epsilon and volume, one autograsp (< 100 ms), and a
@@ -45,7 +45,7 @@ fn grasp_bench(c: &mut Criterion) {
         let mut pts = Vec::new();
         b.iter(|| evaluate(&hand, &part, black_box(&g.pose), 0.5, &areas, &mut pts))
     });
-    // Its two parts apart (issue 9's "contact query" and "epsilon" benches).
+    // Its two parts apart (the "contact query" and "epsilon" benches).
     let mut posed = Vec::new();
     hand.pose_vertices(&g.pose, &mut posed);
     gr.bench_function("contact_query", |b| {
@@ -92,7 +92,7 @@ fn grasp_bench(c: &mut Criterion) {
     });
     gr.measurement_time(std::time::Duration::from_secs(110));
     gr.bench_function("placement_search_1000", |b| {
-        b.iter(|| placement_search(&hand, &part, &plan, 0.5, 1, 1000, 1e9, true).unwrap())
+        b.iter(|| placement_search(&hand, &part, &plan, 0.5, 1, 1000, 1e9).unwrap())
     });
     gr.finish();
 }

@@ -1,4 +1,4 @@
-//! The link model of a subject: seven trials of 60 s at 100 fps (issue 4: all joints under
+//! The link model of a subject: seven trials of 60 s at 100 fps (all joints under
 //! 0.5 s), and the per-frame registration alone.
 
 use criterion::{criterion_group, criterion_main, Criterion};

@@ -1,4 +1,4 @@
-//! Posing the 18,514-vertex / 37,024-face skin (issue 7's speed goal: at least 2,000 poses per
+//! Posing the 18,514-vertex / 37,024-face skin (the speed goal: at least 2,000 poses per
 //! second on one core with linear blend skinning): forward kinematics plus skinning per pose,
 //! into a reused buffer as grasp search does; dual-quaternion skinning for comparison; and the
 //! one-off bone heat weights; and a baked pose with the segment-volume correction (DQS of skin

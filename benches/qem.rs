@@ -1,5 +1,5 @@
 //! QEM simplification of the high-resolution template (37,024 faces) to the paper's ~1,000
-//! faces with every landmark kept (issue 5: well under a second).
+//! faces with every landmark kept (well under a second).
 
 use criterion::{criterion_group, criterion_main, Criterion};
 use ergohand::anatomy::Side;

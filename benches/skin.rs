@@ -1,4 +1,4 @@
-//! The landmark fit of issue 5 (Sumner & Popović energy with the seed paper's constraints) on
+//! The landmark fit (Sumner & Popović energy with the seed paper's constraints) on
 //! the base hand (2314 faces), on the QEM mesh of ~1,000 faces the skin stage fits by default
 //! (low resolution) and on the full template (37,024 faces), the template's 31
 //! landmarks and 22 dimension pairs, toward a smooth non-affine deformation of the template.
@@ -100,9 +100,9 @@ fn skin(c: &mut Criterion) {
     g.finish();
 }
 
-/// The whole skin stage on a simulated subject in a varied posture (issue 10's goal: under
+/// The whole skin stage on a simulated subject in a varied posture (the goal: under
 /// 1 s at the default resolution): pre-alignment, posture fit, posing, QEM, landmark fit,
-/// transfer; the posture fit alone; and the stage at full resolution (issue 5: fit under 3 s).
+/// transfer; the posture fit alone; and the stage at full resolution (fit under 3 s).
 fn skin_stage(c: &mut Criterion) {
     use ergohand::skin::pipeline::{fit_skin, FitResolution, SkinOptions};
     use ergohand::synth::{simulate, Posture, Preset, SynthOptions};

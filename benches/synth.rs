@@ -1,5 +1,5 @@
 //! Generating one simulated subject: six 60 s calibration trials at 100 fps, the reference trial
-//! and the CT-like reference surface at 0.5 mm (issue 3: under 10 s on the 2-core machine).
+//! and the CT-like reference surface at 0.5 mm (under 10 s on the 2-core machine).
 
 use criterion::{criterion_group, criterion_main, Criterion};
 use ergohand::synth::{simulate, voxel_scan::ct_surface, Preset, SynthOptions};

@@ -18,7 +18,7 @@
 //! medians of the 3-DOF and 1-DOF centre errors (mm) and of the axis errors (deg), the median
 //! and largest link-length error (mm), and the worst joint.
 
-use ergohand::cli::{self, Log};
+use ergohand::cli;
 use ergohand::synth::capture::ErrorModel;
 use ergohand::synth::{self, Preset, SynthOptions};
 use ergohand::validate::link_accuracy::link_accuracy;
@@ -92,7 +92,6 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let out = arg(&args, "--out");
     let only = arg(&args, "--only");
     let tmp = tempfile::tempdir()?;
-    let quiet = Log::new(true);
     for config in CONFIGS {
         if let Some(o) = &only {
             if !o.split(',').any(|c| c == config) {
@@ -112,7 +111,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             let sdir = tmp.path().join(format!("{config}-{s}"));
             synth::write_subject(&sdir, &subject, false)?;
             let model = sdir.join("out");
-            cli::reconstruct(&sdir, &model, &quiet)?;
+            cli::reconstruct(&sdir, &model)?;
             let acc = link_accuracy(&model.join("link_model.json"), &sdir.join("truth.json"))?;
             let by_dof = |dof: usize| {
                 median(

@@ -1,4 +1,4 @@
-//! Export one subject's tetrahedral deformation problem (seed paper section 3.7, issue 6) for
+//! Export one subject's tetrahedral deformation problem (seed paper section 3.7) for
 //! a side-by-side run in a physics engine (`validation/tools/softbody_compare.py`).
 //!
 //! ```sh

@@ -15,7 +15,6 @@
 //! All lengths are millimetres in f64; units are converted at the edges (readers and writers).
 
 pub mod anatomy;
-pub mod batch;
 pub mod cli;
 pub mod error;
 pub mod geometry;

@@ -3,6 +3,8 @@
 use clap::{Parser, Subcommand};
 use ergohand::anatomy::Side;
 use ergohand::cli;
+use ergohand::skin::pipeline::FitResolution;
+use ergohand::synth::{Body, Posture, Preset};
 use std::path::PathBuf;
 use std::process::ExitCode;
 
@@ -14,9 +16,13 @@ use std::process::ExitCode;
     long_about = None
 )]
 struct Cli {
-    /// Print nothing but errors (no progress bars, no summaries).
-    #[arg(long, short, global = true)]
+    /// Print nothing but errors (no progress bars, no summaries, no warnings).
+    #[arg(long, short, global = true, conflicts_with = "verbose")]
     quiet: bool,
+    /// More detail on stderr: -v debug (also the jobs a command runs inside itself), -vv trace.
+    /// RUST_LOG=LEVEL (off, error, warn, info, debug, trace) overrides -q and -v.
+    #[arg(long, short, global = true, action = clap::ArgAction::Count)]
+    verbose: u8,
     #[command(subcommand)]
     command: Command,
 }
@@ -43,19 +49,18 @@ enum Command {
         /// Output subject folder.
         #[arg(long)]
         out: PathBuf,
-        /// Error model: typical, small-rom, noisy or clean.
-        #[arg(long, default_value = "typical")]
-        preset: String,
-        /// Which hand: right or left.
-        #[arg(long, default_value = "right")]
-        hand: String,
-        /// Reference posture: template (the template's own) or varied (issue 10's variation).
-        #[arg(long, default_value = "template")]
-        posture: String,
-        /// The true hand: template (the template deformed by its own skeleton, which the
-        /// template can always reach) or procedural (an anatomical hand independent of it).
-        #[arg(long, default_value = "template")]
-        body: String,
+        /// Error model of the capture.
+        #[arg(long, value_enum, default_value_t = Preset::Typical)]
+        preset: Preset,
+        /// Which hand.
+        #[arg(long, value_enum, default_value_t = Side::Right)]
+        hand: Side,
+        /// Reference posture of the subject.
+        #[arg(long, value_enum, default_value_t = Posture::Template)]
+        posture: Posture,
+        /// The true hand.
+        #[arg(long, value_enum, default_value_t = Body::Template)]
+        body: Body,
         /// Length of every calibration trial in seconds (default: drawn from 40-80 s).
         #[arg(long)]
         duration: Option<f64>,
@@ -68,15 +73,14 @@ enum Command {
         subject_dir: PathBuf,
         #[arg(long)]
         out: PathBuf,
-        /// Mesh the skin's landmark fit runs on: `low` (the ~1,000-face QEM mesh, the paper's
-        /// way, then transferred) or `full` (the 37,024-face template directly).
-        #[arg(long, default_value = "low")]
-        fit_resolution: String,
+        /// Mesh the skin's landmark fit runs on.
+        #[arg(long, value_enum, default_value_t = FitResolution::Low)]
+        fit_resolution: FitResolution,
         /// Fit the template as it stands instead of posing it onto the link model first
-        /// (issue 10, step 2; for comparison).
+        /// (for comparison).
         #[arg(long)]
         no_template_posing: bool,
-        /// Weight of the joint-centre terms of the skin fit (issue 10, step 3); 0 leaves them out.
+        /// Weight of the joint-centre terms of the skin fit; 0 leaves them out.
         #[arg(long, default_value_t = ergohand::skin::pipeline::CENTRE_WEIGHT)]
         centre_weight: f64,
     },
@@ -139,13 +143,14 @@ enum Command {
 }
 
 fn main() -> ExitCode {
-    let args = Cli::parse();
-    let log = cli::Log::new(args.quiet);
+    let args = match Cli::try_parse() {
+        Ok(a) => a,
+        Err(e) => return parse_error(e),
+    };
+    cli::logger::init(args.quiet, args.verbose);
     let result = match args.command {
-        Command::Demo { out } => cli::demo(&out, &log),
-        Command::Template { out } => {
-            cli::template(&out, &[Side::Right, Side::Left], &log).map(|_| ())
-        }
+        Command::Demo { out } => cli::demo(&out),
+        Command::Template { out } => cli::template(&out, &[Side::Right, Side::Left]).map(|_| ()),
         Command::Synth {
             seed,
             out,
@@ -155,27 +160,26 @@ fn main() -> ExitCode {
             body,
             duration,
             force,
-        } => cli::synth_options(seed, &preset, &hand, &posture, &body, duration)
-            .and_then(|opts| cli::synth(&opts, &out, force, &log)),
+        } => cli::synth(
+            &cli::synth_options(seed, preset, hand, posture, body, duration),
+            &out,
+            force,
+        ),
         Command::Reconstruct {
             subject_dir,
             out,
             fit_resolution,
             no_template_posing,
             centre_weight,
-        } => cli::skin_options(&fit_resolution, !no_template_posing, centre_weight)
-            .and_then(|opts| cli::reconstruct_with(&subject_dir, &out, &opts, &log))
+        } => cli::skin_options(fit_resolution, !no_template_posing, centre_weight)
+            .and_then(|opts| cli::reconstruct_with(&subject_dir, &out, &opts))
             .map(|_| ()),
         Command::Validate {
             subject_dir,
             report,
             suite: true,
             ..
-        } => cli::validate_suite(
-            &subject_dir,
-            &report.unwrap_or_else(|| "reports".into()),
-            &log,
-        ),
+        } => cli::validate_suite(&subject_dir, &report.unwrap_or_else(|| "reports".into())),
         Command::Validate {
             subject_dir,
             model,
@@ -184,7 +188,7 @@ fn main() -> ExitCode {
         } => {
             let model = model.unwrap_or_else(|| subject_dir.join("out"));
             let report = report.unwrap_or_else(|| model.join("report"));
-            cli::validate(&subject_dir, &model, &report, &log).map(|_| ())
+            cli::validate(&subject_dir, &model, &report).map(|_| ())
         }
         Command::Pose {
             model,
@@ -192,34 +196,30 @@ fn main() -> ExitCode {
             out,
             keep_angles,
             plain_skinning,
-        } => cli::pose(
+        } => cli::pose_with(
             &model,
             &pose.to_string_lossy(),
             &out,
-            keep_angles,
-            plain_skinning,
-            &log,
-        ),
+            &cli::PoseOptions {
+                resolve_contacts: !keep_angles,
+                preserve_volume: !plain_skinning,
+            },
+        )
+        .map(|_| ()),
         Command::Grasp { scene, model, out } => {
-            ergohand::grasp::grasp_command(&scene, model.as_deref(), &out, log.quiet()).map(|r| {
-                log.info(format!(
-                    "grasp: force closure {}, epsilon {:.4}, volume {:.3e}, holds {}, contact {:.0} mm²; wrote {}",
-                    r.force_closure, r.epsilon, r.volume, r.holds, r.total_contact_area_mm2, out.display()
-                ))
-            })
+            cli::grasp(&scene, model.as_deref(), &out).map(|_| ())
         }
         Command::Batch {
             subjects_dir,
             out,
             jobs,
-        } => ergohand::batch::batch_command(
+        } => cli::batch(
             &subjects_dir,
             &out,
-            &ergohand::batch::BatchOptions {
+            &cli::batch::BatchOptions {
                 jobs,
                 ..Default::default()
             },
-            &log,
         )
         .map(|_| ()),
     };
@@ -230,4 +230,27 @@ fn main() -> ExitCode {
             ExitCode::FAILURE
         }
     }
+}
+
+/// A command-line mistake: help and version as clap shows them; a wrong value of an option as
+/// one line naming the option, the value and the values it takes (exit status 1, as every
+/// other bad input); any other mistake as clap reports it.
+fn parse_error(e: clap::Error) -> ExitCode {
+    use clap::error::{ContextKind, ContextValue, ErrorKind};
+    if e.kind() != ErrorKind::InvalidValue {
+        e.exit();
+    }
+    let get = |k| match e.get(k) {
+        Some(ContextValue::String(s)) => s.clone(),
+        Some(ContextValue::Strings(v)) => v.join(", "),
+        _ => String::new(),
+    };
+    let option = get(ContextKind::InvalidArg);
+    let option = option.split_whitespace().next().unwrap_or_default();
+    eprintln!(
+        "error: {option} {}: not one of {}",
+        get(ContextKind::InvalidValue),
+        get(ContextKind::ValidValue)
+    );
+    ExitCode::FAILURE
 }

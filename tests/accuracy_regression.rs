@@ -1,10 +1,10 @@
-//! Issue 9's accuracy regression check, on the CI subset of the validation suite: the subjects
+//! The accuracy regression check, on the CI subset of the validation suite: the subjects
 //! of `[ci.subject.*]` in `validation/thresholds.toml` are simulated from `validation/suite.toml`
 //! with the subset's shorter trials, reconstructed and validated as `ergohand validate` does;
 //! the test fails naming the subject and the figure of every figure worse than its threshold.
 //! `ergohand validate --suite validation/` checks the whole suite against the same file.
 
-use ergohand::cli::{self, Log};
+use ergohand::cli;
 use ergohand::validate::thresholds::{check, describe, Figures, Thresholds, FILE};
 use std::path::Path;
 
@@ -16,7 +16,6 @@ fn ci_subset_meets_the_accuracy_thresholds() {
     let ci = &thresholds.ci;
     assert!(!ci.subject.is_empty(), "the CI subset is empty");
     let tmp = tempfile::tempdir().unwrap();
-    let quiet = Log::new(true);
     let mut regressions = Vec::new();
     let mut measured = Vec::new();
     for (name, limits) in &ci.subject {
@@ -31,9 +30,9 @@ fn ci_subset_meets_the_accuracy_thresholds() {
         }
         let sdir = tmp.path().join(name);
         let model = sdir.join("out");
-        cli::synth(&opts, &sdir, false, &quiet).unwrap();
-        cli::reconstruct(&sdir, &model, &quiet).unwrap();
-        let v = cli::validate(&sdir, &model, &model.join("report"), &quiet).unwrap();
+        cli::synth(&opts, &sdir, false).unwrap();
+        cli::reconstruct(&sdir, &model).unwrap();
+        let v = cli::validate(&sdir, &model, &model.join("report")).unwrap();
         let (link, surface) = v.against_references(&sdir).unwrap();
         let figures = Figures::measure(link, surface, &v.dimensions, &model).unwrap();
         regressions.extend(check(name, &figures, limits));

@@ -72,7 +72,7 @@ fn batch_reconstructs_skips_failures_and_reruns_only_what_changed() {
             .any(|l| l.contains("subject broken failed") && l.contains(".c3d")),
         "{err}"
     );
-    let expected: BTreeSet<String> = ergohand::batch::OUTPUTS
+    let expected: BTreeSet<String> = ergohand::cli::batch::OUTPUTS
         .iter()
         .map(|s| s.to_string())
         .collect();

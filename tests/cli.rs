@@ -298,7 +298,7 @@ fn reconstruct_and_validate_a_simulated_subject() {
         serde_json::from_str(&std::fs::read_to_string(out.join("rep/metrics.json")).unwrap())
             .unwrap();
     // Every given dimension is measured on the skin by its definition; the fit met the
-    // template's vertex pairs for them (issue 5: within 0.02 mm, report.json), which a caliper
+    // template's vertex pairs for them (within 0.02 mm, report.json), which a caliper
     // on the skin reads up to a few mm differently (the template's pairs are not the sections'
     // extremes), so only a plausibility bound here.
     let dims = &metrics["dimensions"];
@@ -321,7 +321,7 @@ fn reconstruct_and_validate_a_simulated_subject() {
         pairs.values().all(|r| r.as_f64().unwrap().abs() <= 0.02),
         "{pairs:?}"
     );
-    // Issue 9: the report a person reads, self-contained, with every section and picture.
+    // the report a person reads, self-contained, with every section and picture.
     let rep = out.join("rep");
     let html = std::fs::read_to_string(rep.join("report.html")).unwrap();
     let images = ergohand::validate::report_html::check_self_contained(&html).unwrap();
@@ -392,7 +392,7 @@ fn reconstruct_and_validate_a_simulated_subject() {
     // Another simulator writes only what the spec names in truth.json.
     validate_with_a_spec_only_truth(&subj, &out, &metrics, &dir.path().join("spec-only"));
     assert_eq!(report["skin"]["inverted_faces"], 0);
-    // Section 3.7 and issue 7: the tetrahedral mesh and the skinned hand.
+    // Section 3.7 and posing: the tetrahedral mesh and the skinned hand.
     assert_eq!(report["tet"]["inverted"], 0);
     assert!(
         report["tet"]["volume_error_percent"]
@@ -417,7 +417,7 @@ fn reconstruct_and_validate_a_simulated_subject() {
     ]);
     assert!(p.status.success(), "{}", stderr(&p));
     assert!(fist.is_file());
-    // ... and its tetrahedral mesh in the same pose (issue 7): same nodes and elements as
+    // ... and its tetrahedral mesh in the same pose: same nodes and elements as
     // tet.vtk, moved, with the same volume to a few percent.
     let rest = ergohand::io::vtk::read_vtk(&out.join("tet.vtk"), Units::Millimetres).unwrap();
     for ext in ["vtk", "msh"] {
@@ -445,7 +445,7 @@ fn reconstruct_and_validate_a_simulated_subject() {
     assert!((posed.volume() / rest.volume() - 1.0).abs() < 0.03);
     assert_eq!(posed.inverted_count(), 0);
     // In a fist, dual-quaternion skinning alone loses finger tissue; the default correction
-    // gives it back (issue 7's segment-volume goal, checked per segment in the library's
+    // gives it back (the segment-volume goal, checked per segment in the library's
     // tests), so the whole mesh's volume is closer to the rest volume with it.
     let mut change = Vec::new();
     for plain in [false, true] {
@@ -656,19 +656,24 @@ fn grasp_writes_report_glb_and_map_and_refuses_bad_scenes() {
 /// hand the template reaches by construction.
 #[test]
 fn the_template_cannot_reach_the_procedural_body() {
-    use ergohand::cli::{self, Log};
+    use ergohand::cli;
     use ergohand::validate::thresholds::Figures;
     let tmp = tempfile::tempdir().unwrap();
-    let quiet = Log::new(true);
-    let mut opts =
-        cli::synth_options(5, "clean", "right", "template", "procedural", Some(15.0)).unwrap();
+    let mut opts = cli::synth_options(
+        5,
+        ergohand::synth::Preset::Clean,
+        ergohand::anatomy::Side::Right,
+        ergohand::synth::Posture::Template,
+        ergohand::synth::Body::Procedural,
+        Some(15.0),
+    );
     opts.voxel_mm = 0.7;
     let sdir = tmp.path().join("P");
     let model = sdir.join("out");
-    cli::synth(&opts, &sdir, false, &quiet).unwrap();
+    cli::synth(&opts, &sdir, false).unwrap();
     assert!(!sdir.join("truth_skin.ply").exists());
-    cli::reconstruct(&sdir, &model, &quiet).unwrap();
-    let v = cli::validate(&sdir, &model, &model.join("report"), &quiet).unwrap();
+    cli::reconstruct(&sdir, &model).unwrap();
+    let v = cli::validate(&sdir, &model, &model.join("report")).unwrap();
     let (link, surface) = v.against_references(&sdir).unwrap();
     let figures = Figures::measure(link, surface, &v.dimensions, &model).unwrap();
     eprintln!("procedural seed 5: {:?}", figures.0);

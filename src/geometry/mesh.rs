@@ -1,10 +1,10 @@
 //! Indexed triangle mesh in f64 millimetres.
 //!
 //! Shapes are kept apart from queries (as in parry): [`TriMesh`] owns vertices and faces and
-//! answers cheap per-element questions; connectivity lives in [`super::Topology`], built on
+//! answers cheap per-element questions; connectivity lives in [`super::Topology`] (with [`TriMesh::topology`]), built on
 //! demand, so a mesh that is only transformed or written never pays for it.
 
-use super::{Point, Topology, Vec3};
+use super::{Point, Vec3};
 use crate::error::{Error, Result};
 use nalgebra::{Isometry3, Matrix4};
 use std::collections::HashMap;
@@ -246,17 +246,6 @@ impl TriMesh {
             vertices: self.vertices.iter().map(|p| p * s).collect(),
             faces: self.faces.clone(),
         }
-    }
-
-    /// Edge and face connectivity (see [`Topology`]).
-    pub fn topology(&self) -> Topology {
-        Topology::new(self)
-    }
-
-    /// Error unless the mesh is closed, 2-manifold (edges and vertices) and consistently oriented;
-    /// the message names the first offending edge or vertex.
-    pub fn check_closed_manifold(&self) -> Result<()> {
-        self.topology().check_closed_manifold()
     }
 }
 

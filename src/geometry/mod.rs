@@ -3,11 +3,14 @@
 //! sections.
 
 pub mod closest_point;
+pub mod convex_hull_6d;
 pub mod horn;
 pub mod loop_subdivision;
+pub mod marching_tetrahedra;
 pub mod mesh;
 pub mod plane_section;
 pub mod sparse_cholesky;
+pub mod tet_mesh;
 pub mod topology;
 
 pub use horn::{absolute_orientation, Registration};

@@ -198,3 +198,18 @@ impl Topology {
         Ok(())
     }
 }
+
+/// Connectivity questions asked of a mesh, answered by its [`Topology`] (kept here so that the
+/// mesh type does not depend on its connectivity).
+impl TriMesh {
+    /// Edge and face connectivity (see [`Topology`]).
+    pub fn topology(&self) -> Topology {
+        Topology::new(self)
+    }
+
+    /// Error unless the mesh is closed, 2-manifold (edges and vertices) and consistently oriented;
+    /// the message names the first offending edge or vertex.
+    pub fn check_closed_manifold(&self) -> Result<()> {
+        self.topology().check_closed_manifold()
+    }
+}

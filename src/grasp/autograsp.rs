@@ -973,7 +973,6 @@ pub fn placement_search(
     seed: u64,
     candidates: usize,
     time_limit_s: f64,
-    quiet: bool,
 ) -> Option<PlacementResult> {
     use rayon::prelude::*;
     let mut rng = Rng::new(seed).fork("placement");
@@ -993,10 +992,11 @@ pub fn placement_search(
         stride: SCREEN_STRIDE,
         ..AutograspOptions::default()
     };
-    let bar = if quiet {
-        indicatif::ProgressBar::hidden()
-    } else {
+    // A bar only where status lines are logged (the command line without --quiet).
+    let bar = if log::log_enabled!(log::Level::Info) {
         indicatif::ProgressBar::new(candidates as u64)
+    } else {
+        indicatif::ProgressBar::hidden()
     };
     let started = std::time::Instant::now();
     let coarse_sample = skin_sample(hand, SCREEN_STRIDE);

@@ -1,4 +1,4 @@
-//! Contacts between the posed skin and the part, from parry point queries (issue 8, "Contacts").
+//! Contacts between the posed skin and the part, from parry point queries.
 //!
 //! The part is a parry [`parry3d_f64::shape::TriMesh`] with its BVH and, when it is a closed
 //! oriented 2-manifold, angle-weighted pseudo-normals (Bærentzen & Aanæs 2005), which make the

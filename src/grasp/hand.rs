@@ -128,7 +128,7 @@ impl PosableHand for RigidHand {
     }
 }
 
-/// The pose stage's individual hand, posed by linear blend skinning (issue 7's fast path,
+/// The pose stage's individual hand, posed by linear blend skinning (the fast path,
 /// [`SkinBinding::linear_into`]): the whole skin through one binding, and one binding per
 /// link over the vertices it dominates (with their full weights, so a link's vertices land
 /// exactly where the whole-skin posing puts them).

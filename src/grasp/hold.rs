@@ -1,4 +1,4 @@
-//! Physical hold test in rapier (issue 8, "Grasp stability"): the hand's links are kinematic
+//! Physical hold test in rapier: the hand's links are kinematic
 //! convex hulls of the skin vertices each link dominates, fixed in the grasp posture; the part is
 //! a dynamic triangle mesh with its mass (inertia of its bounding box as a solid); gravity is
 //! applied along ±x, ±y, ±z of the world in turn, in a fresh world each time. The grasp holds when
@@ -352,7 +352,7 @@ mod tests {
         assert!(!r.holds, "{r:?}");
     }
 
-    /// Issue 8's check with the hand: the template hand's power grasp of the 60 mm cylinder
+    /// The hold check with the hand: the template hand's power grasp of the 60 mm cylinder
     /// (approach to contact, autograsp, squeeze) holds in all six directions, and the same
     /// hand's index fingertip pressed as deep into the cylinder (the squeeze depth) with
     /// nothing else touching does not: holding needs opposing contacts, not only pressure.

@@ -1,12 +1,13 @@
-//! Grasp and contact checks of a posed hand on a CAD part (issue 8; spec section 4, `grasp`).
+//! Grasp and contact checks of a posed hand on a CAD part (spec section 4, `grasp`).
 //!
 //! A scene ([`scene`]) names a part, its pose, friction and mass, a hand and a grasp type.
 //! [`autograsp`] closes the hand on the part from an approach pose (GraspIt's autograsp,
 //! Miller & Allen 2004) or searches placements; [`contact`] measures contacts per link with
 //! parry queries; [`quality`] computes force closure and the Ferrari-Canny epsilon and volume
 //! qualities (Ferrari & Canny 1992); [`hold`] checks in rapier that the part stays in the hand
-//! under gravity from six directions. [`grasp_command`] runs a scene and writes `grasp.json`,
-//! `grasp.glb` (posed hand and part, contact map as `COLOR_0`) and `contact_map.png`.
+//! under gravity from six directions. [`run_scene`] runs a scene; the `grasp` command
+//! (`ergohand grasp`) writes its `grasp.json`, `grasp.glb` (posed hand and part, contact
+//! map as `COLOR_0`) and `contact_map.png`.
 
 pub mod autograsp;
 pub mod broad;
@@ -23,7 +24,6 @@ pub use hand::{PosableHand, RigidHand, SkinnedHand};
 use crate::anatomy::Joint;
 use crate::error::{Error, Result};
 use crate::geometry::{Point, TriMesh};
-use crate::io::output_paths::{check_output_dir, Inputs};
 use crate::io::Units;
 use autograsp::{autograsp, grasp_plan, root_for, AutograspOptions};
 use contact::{contacts, vertex_areas, ContactOptions, ContactSet, PartShape};
@@ -70,7 +70,7 @@ pub fn load_hand(model: Option<&Path>, side: crate::anatomy::Side) -> Result<Ski
     }
 }
 
-/// One evaluation of a grasp (issue 8's speed goal): `hand` posed in `pose` into `posed` (a
+/// One evaluation of a grasp (the speed goal): `hand` posed in `pose` into `posed` (a
 /// reused buffer), its contacts with `part` ([`contacts`], default options, `areas` from
 /// [`vertex_areas`]) and their force closure and Ferrari-Canny epsilon with friction `mu`
 /// ([`quality::grasp_epsilon`], torques over the part's maximum radius; the volume quality,
@@ -271,9 +271,9 @@ fn grasp_from(
     })
 }
 
-/// Evaluate a scene with `hand` (see [`grasp_command`]); the part's warnings (open mesh,
-/// size against a hand) go to stderr as soon as the part is read, unless `quiet`.
-pub fn run_scene(scene: &Scene, hand: &dyn PosableHand, quiet: bool) -> Result<GraspOutcome> {
+/// Evaluate a scene with `hand` (as `ergohand grasp` does); the part's warnings (open mesh,
+/// size against a hand) are logged as soon as the part is read, and kept in the report.
+pub fn run_scene(scene: &Scene, hand: &dyn PosableHand) -> Result<GraspOutcome> {
     let mut timings = Timings::default();
     let started = std::time::Instant::now();
     let clock = started;
@@ -293,10 +293,8 @@ pub fn run_scene(scene: &Scene, hand: &dyn PosableHand, quiet: bool) -> Result<G
     }
     // Shown now, not with the results: a part in the wrong units usually ends the scene with
     // an error (the hand starts inside it), and the warning is what explains it.
-    if !quiet {
-        for w in &warnings {
-            eprintln!("warning: {w}");
-        }
+    for w in &warnings {
+        log::warn!("{w}");
     }
     timings.part_s = clock.elapsed().as_secs_f64();
     let plan = grasp_plan(scene.grasp);
@@ -312,7 +310,6 @@ pub fn run_scene(scene: &Scene, hand: &dyn PosableHand, quiet: bool) -> Result<G
                 scene.seed,
                 scene.candidates,
                 scene.time_limit_s,
-                quiet,
             )
             .ok_or_else(|| {
                 // A key pinch opens only so far: say so when the part cannot fit.
@@ -480,110 +477,6 @@ pub fn contact_colours(distance: &[Option<f64>], tol: f64) -> Vec<[u8; 3]> {
         .collect()
 }
 
-/// Write `grasp.json`, `grasp.glb` and `contact_map.png` of an outcome into `out`.
-pub fn write_outputs(o: &GraspOutcome, out: &Path) -> Result<()> {
-    std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
-    let json = serde_json::to_string_pretty(&o.report)
-        .map_err(|e| Error::invalid(format!("grasp.json: {e}")))?;
-    crate::io::atomic::write_bytes_atomic(&out.join("grasp.json"), json.as_bytes())?;
-    let colours = contact_colours(&o.colour_distance, ContactOptions::default().tolerance_mm);
-    let lin = |c: [u8; 3]| {
-        let f = |x: u8| ((x as f32 / 255.0).powf(2.2)).clamp(0.0, 1.0);
-        [f(c[0]), f(c[1]), f(c[2]), 1.0]
-    };
-    let part_grey = [170u8, 175, 185];
-    let scene = crate::io::gltf::Scene {
-        meshes: vec![
-            crate::io::gltf::SceneMesh {
-                name: "hand".into(),
-                mesh: o.hand_mesh.clone(),
-                normals: None,
-                colors: Some(colours.iter().map(|&c| lin(c)).collect()),
-                skin: None,
-            },
-            crate::io::gltf::SceneMesh {
-                name: "part".into(),
-                mesh: o.part_mesh.clone(),
-                normals: None,
-                colors: Some(vec![lin(part_grey); o.part_mesh.n_vertices()]),
-                skin: None,
-            },
-        ],
-    };
-    crate::io::gltf::write_glb(&out.join("grasp.glb"), &scene, Units::Metres)?;
-    // Picture: hand and part together, seen from the palm side of the part.
-    let mut v = o.hand_mesh.vertices.clone();
-    let mut f = o.hand_mesh.faces.clone();
-    let off = v.len();
-    v.extend(o.part_mesh.vertices.iter().cloned());
-    f.extend(
-        o.part_mesh
-            .faces
-            .iter()
-            .map(|t| [t[0] + off, t[1] + off, t[2] + off]),
-    );
-    let mut cols = colours;
-    cols.extend(std::iter::repeat_n(part_grey, o.part_mesh.n_vertices()));
-    let both = TriMesh {
-        vertices: v,
-        faces: f,
-    };
-    let com = o.report.part.centre_of_mass_mm;
-    let centre = |pts: &[Point]| {
-        Point::from(
-            pts.iter().map(|p| p.coords).sum::<crate::geometry::Vec3>() / pts.len().max(1) as f64,
-        )
-    };
-    let dir = Point::from(com) - centre(&o.hand_mesh.vertices);
-    let view = crate::render::View::along(dir, crate::geometry::Vec3::z()).fit_mesh(&both, 0.05);
-    let img = crate::render::render_mesh(&both, Some(&cols), &view, 800, 800);
-    img.save_png(out.join("contact_map.png"))
-}
-
-/// The files [`write_outputs`] writes into its folder.
-pub const OUTPUT_FILES: [&str; 3] = ["grasp.json", "grasp.glb", "contact_map.png"];
-
-/// `ergohand grasp SCENE.toml --model OUT --out DIR`: read the scene, load the hand (`model`
-/// overrides the scene's `hand.model`; neither: the template), check the output folder (see
-/// [`crate::io::output_paths`]), close the hand on the part, measure, and write `grasp.json`,
-/// `grasp.glb` and `contact_map.png` into `out`.
-pub fn grasp_command(
-    scene: &Path,
-    model: Option<&Path>,
-    out: &Path,
-    quiet: bool,
-) -> Result<GraspReport> {
-    let s = scene::read_scene(scene)?;
-    let model = model.map(Path::to_path_buf).or(s.hand_model.clone());
-    let mut inputs = Inputs::files([scene.to_path_buf(), s.part_file.clone()]);
-    if let Some(m) = &model {
-        inputs = inputs.with_model(m);
-    }
-    check_output_dir(out, &OUTPUT_FILES, "--out", &inputs)?;
-    let hand = load_hand(model.as_deref(), s.side)?;
-    let o = run_scene(&s, &hand, quiet)?;
-    write_outputs(&o, out)?;
-    Ok(o.report)
-}
-
-/// The demo's grasp: writes the shipped bottle scene (`scenes/bottle.toml`, embedded) and its
-/// part (generated, [`parts::Part::Bottle`]) into `out`, then grasps it with the hand of the
-/// `reconstruct` folder `model_dir` ([`grasp_command`]), outputs in `out`.
-pub fn demo_bottle(model_dir: &Path, out: &Path) -> Result<GraspReport> {
-    std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
-    let scene = out.join("bottle.toml");
-    crate::io::atomic::write_bytes_atomic(
-        &scene,
-        include_str!("../../scenes/bottle.toml").as_bytes(),
-    )?;
-    crate::io::stl::write_stl(
-        &out.join("bottle.stl"),
-        &parts::Part::Bottle.mesh()?,
-        Units::Millimetres,
-    )?;
-    grasp_command(&scene, Some(model_dir), out, true)
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -616,7 +509,7 @@ mod tests {
         // A bottle-sized part written in metres read as mm: 1000 times too small.
         let tiny = crate::geometry::mesh::tests::cuboid(0.06, 0.06, 0.2);
         let s = scene_with(dir.path(), &tiny, SIDE);
-        let o = run_scene(&s, hand(), true).unwrap();
+        let o = run_scene(&s, hand()).unwrap();
         let w = o.report.warnings.join("\n");
         assert!(
             w.contains(&scene_name)
@@ -629,7 +522,7 @@ mod tests {
             .transformed(&nalgebra::Isometry3::translation(-30.0, -30.0, 0.0));
         open.faces.truncate(open.faces.len() - 2);
         let s = scene_with(dir.path(), &open, SIDE);
-        let o = run_scene(&s, hand(), true).unwrap();
+        let o = run_scene(&s, hand()).unwrap();
         assert!(!o.report.part.closed);
         let w = o.report.warnings.join("\n");
         assert!(
@@ -641,7 +534,7 @@ mod tests {
         let bottle = parts::Part::Bottle.mesh().unwrap();
         let inside = "type = \"power\"\napproach = { translation_mm = [0, 0, 90], rotation_deg = [-90, -90, 0] }";
         let s = scene_with(dir.path(), &bottle, inside);
-        let e = run_scene(&s, hand(), true).err().unwrap().to_string();
+        let e = run_scene(&s, hand()).err().unwrap().to_string();
         assert!(
             e.contains(&scene_name)
                 && e.contains("grasp.approach")
@@ -674,8 +567,8 @@ mod tests {
         doubled
             .faces
             .extend(cube.faces.iter().map(|&[a, b, c]| [a, c, b]));
-        let plain = run_scene(&scene_with(dir.path(), &cube, SIDE), hand(), true).unwrap();
-        let twice = run_scene(&scene_with(dir.path(), &doubled, SIDE), hand(), true).unwrap();
+        let plain = run_scene(&scene_with(dir.path(), &cube, SIDE), hand()).unwrap();
+        let twice = run_scene(&scene_with(dir.path(), &doubled, SIDE), hand()).unwrap();
         let (a, b) = (&plain.report, &twice.report);
         assert_eq!(a.force_closure, b.force_closure);
         assert_eq!(a.epsilon, b.epsilon);
@@ -691,9 +584,7 @@ mod tests {
 
     /// The report of the shipped scene `scenes/NAME.toml` with the default hand.
     fn shipped(name: &str) -> GraspReport {
-        run_scene(&shipped_scene(name), hand(), true)
-            .unwrap()
-            .report
+        run_scene(&shipped_scene(name), hand()).unwrap().report
     }
 
     /// The shipped scene `scenes/NAME.toml`, read.
@@ -702,7 +593,7 @@ mod tests {
         scene::read_scene(&path).unwrap()
     }
 
-    /// The shipped bottle scene (issue 8's 60 mm bottle in a power grasp) reaches force
+    /// The shipped bottle scene (the 60 mm bottle in a power grasp) reaches force
     /// closure and holds in rapier with the default hand.
     #[test]
     fn shipped_bottle_scene_is_force_closure_and_holds() {
@@ -725,7 +616,7 @@ mod tests {
     fn lateral_grasp_of_the_pen_holds() {
         let mut s = shipped_scene("pen");
         s.grasp = scene::GraspType::Lateral;
-        let r = &run_scene(&s, hand(), true).unwrap().report;
+        let r = &run_scene(&s, hand()).unwrap().report;
         let area = |l: &str| r.contact_area_mm2.get(l).copied().unwrap_or(0.0);
         for pad in ["T_DIST", "I_MID"] {
             assert!(area(pad) > 0.0, "{pad}: {:?}", r.contact_area_mm2);
@@ -748,7 +639,7 @@ mod tests {
         let mut s = shipped_scene("mouse");
         s.grasp = scene::GraspType::Lateral;
         s.candidates = 100;
-        let e = run_scene(&s, hand(), true).err().unwrap().to_string();
+        let e = run_scene(&s, hand()).err().unwrap().to_string();
         let opening = autograsp::press_travel(hand(), &autograsp::grasp_plan(s.grasp))
             .unwrap()
             .norm();

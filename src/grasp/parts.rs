@@ -2,15 +2,15 @@
 //!
 //! Each part is a signed distance function (negative inside, mm; exact or a Lipschitz-1 bound
 //! near the surface) sampled on a regular grid as a linear ramp of one voxel around the zero
-//! level and meshed by marching tetrahedra ([`crate::synth::voxel_scan::isosurface`]), which
+//! level and meshed by marching tetrahedra ([`crate::geometry::marching_tetrahedra::isosurface`]), which
 //! yields a closed, consistently oriented 2-manifold whenever the grid border is outside.
 //! Smooth unions use the polynomial smooth minimum (Quilez 2013, "smooth minimum").
 //!
 //! Frames: every part stands on z = 0 with its long axis vertical where it has one.
 
 use crate::error::{Error, Result};
+use crate::geometry::marching_tetrahedra::{isosurface, Grid, FULL};
 use crate::geometry::{Point, TriMesh};
-use crate::synth::voxel_scan::{isosurface, Grid, FULL};
 
 /// The five shipped parts.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

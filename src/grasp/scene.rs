@@ -1,5 +1,5 @@
 //! `SCENE.toml`: a part, its pose, friction and mass, the hand and the grasp to try
-//! (issue 8; spec section 4, `ergohand grasp SCENE.toml --model OUT --out DIR`).
+//! (spec section 4, `ergohand grasp SCENE.toml --model OUT --out DIR`).
 //!
 //! ```toml
 //! [part]

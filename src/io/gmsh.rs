@@ -9,7 +9,7 @@
 use super::atomic::write_atomic;
 use super::Units;
 use crate::error::Result;
-use crate::tet::mesh::TetMesh;
+use crate::geometry::tet_mesh::TetMesh;
 use std::path::Path;
 
 /// Gmsh's element type of the 4-node tetrahedron.

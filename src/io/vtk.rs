@@ -10,8 +10,8 @@
 use super::atomic::{read_bytes, write_atomic};
 use super::Units;
 use crate::error::{Error, Result};
+use crate::geometry::tet_mesh::{dihedral_angles, TetMesh};
 use crate::geometry::Point;
-use crate::tet::mesh::{dihedral_angles, TetMesh};
 use std::path::Path;
 
 /// VTK's cell type id of the linear tetrahedron.

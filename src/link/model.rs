@@ -1235,7 +1235,7 @@ mod tests {
 
     /// Five simulated sessions of one typical hand (new plates, noise, soft-tissue slide, gaps
     /// and static trial each time): the SD of the index link lengths. Re-attached plates are
-    /// not what the seed paper (0.52 and 0.92 mm) and issue 4 (0.3 mm) measure (that is
+    /// not what the seed paper (0.52 and 0.92 mm) and the goal (0.3 mm) measure (that is
     /// `index_link_lengths_repeat_over_trial_repeats`); the method reaches about 1.0 and 1.9 mm
     /// here (`reports/link-repeatability.md`): what remains is each placement's slide with the
     /// joints' own angles, which no motion tells from a shifted centre
@@ -1249,7 +1249,7 @@ mod tests {
         assert!(sd1 < 1.6 && sd2 < 2.4, "{sd1} {sd2}");
     }
 
-    /// Issue 4's repeatability: the index trial of one session recorded five times (the plates
+    /// The repeatability: the index trial of one session recorded five times (the plates
     /// where they are; each take a new realisation of the motion, seating, drift, noise and
     /// gaps, `SynthOptions::trial_repeat`), as the seed paper measured it (0.52 and 0.92 mm):
     /// the SD of the MCP-PIP and PIP-DIP lengths is at most 0.3 mm, and their mean stays within

@@ -1,4 +1,4 @@
-//! Keeping the digits of a posed hand out of each other (issue 7: "in `fist` no finger passes
+//! Keeping the digits of a posed hand out of each other (the goal: "in `fist` no finger passes
 //! through another by more than 2 mm").
 //!
 //! A pose is a set of joint angles; the same angles close a broad hand's fingers into each

@@ -1,4 +1,4 @@
-//! Skinning weights for the nodes of the tetrahedral mesh (issue 7: "the same deformation
+//! Skinning weights for the nodes of the tetrahedral mesh (the goal: "the same deformation
 //! applied to the tetrahedral mesh's nodes").
 //!
 //! The boundary nodes of the template's tet mesh lie on the template surface (section 3.7), so

@@ -1,4 +1,4 @@
-//! Joint angles from a pose file or a built-in name (issue 7).
+//! Joint angles from a pose file or a built-in name.
 //!
 //! `POSE.toml` maps joint names (spec section 2, e.g. `I_MCP`) to degrees: an array
 //! `[flexion, abduction, axial rotation]` for a 3-DOF joint (WRIST, T_CMC, the finger MCPs),

@@ -188,7 +188,7 @@ pub fn segment_volumes(
 ) -> Vec<f64> {
     let mut vol = vec![0.0; n_links];
     for (q, &l) in tets.iter().zip(labels) {
-        vol[l] += crate::tet::mesh::tet_signed_volume(
+        vol[l] += crate::geometry::tet_mesh::tet_signed_volume(
             &nodes[q[0]],
             &nodes[q[1]],
             &nodes[q[2]],
@@ -203,10 +203,20 @@ pub fn segment_volumes(
 pub fn finger_volume_changes(rest: &[f64], posed: &[f64]) -> Vec<(Link, f64)> {
     Link::ALL
         .iter()
-        .filter(|l| super::volume_correction::is_finger_segment(l.index()))
+        .filter(|l| is_finger_segment(l.index()))
         .filter(|l| rest[l.index()] > 0.0)
         .map(|&l| (l, posed[l.index()] / rest[l.index()] - 1.0))
         .collect()
+}
+
+/// Whether link `l` is a finger segment (a phalanx or the thumb metacarpal), the segments whose
+/// volume is kept.
+pub fn is_finger_segment(l: usize) -> bool {
+    Link::ALL
+        .get(l)
+        .and_then(|l| l.joint())
+        .and_then(|j| j.finger())
+        .is_some()
 }
 
 #[cfg(test)]
@@ -232,7 +242,9 @@ mod tests {
             (x + (c & 1) as usize) * 4 + ((c >> 1) & 1) as usize * 2 + ((c >> 2) & 1) as usize
         };
         let tets = (0..2)
-            .flat_map(|x| crate::synth::voxel_scan::kuhn_tetrahedra().map(|t| t.map(|c| id(x, c))))
+            .flat_map(|x| {
+                crate::geometry::marching_tetrahedra::kuhn_tetrahedra().map(|t| t.map(|c| id(x, c)))
+            })
             .collect();
         let weights = nodes
             .iter()

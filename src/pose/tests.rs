@@ -437,67 +437,7 @@ fn explore() {
     }
 }
 
-/// `ergohand pose` end to end on a `reconstruct`-style folder holding the template: a built-in
-/// pose to GLB (read back: skinned, joints posed) and a pose file to OBJ (the DQS posed skin),
-/// a clamped angle warned by joint, and a bad output extension refused.
-#[test]
-fn pose_command_writes_glb_and_obj() {
-    let t = load_template(Side::Right).unwrap();
-    let dir = tempfile::tempdir().unwrap();
-    let doc = serde_json::json!({
-        "units": "mm", "frame": "reference", "hand": "right",
-        "joints": crate::skeleton::record::joint_records(&t.skeleton),
-    });
-    std::fs::write(dir.path().join("link_model.json"), doc.to_string()).unwrap();
-    crate::io::obj::write_obj(
-        &dir.path().join("skin.obj"),
-        &t.mesh,
-        crate::io::Units::Millimetres,
-        None,
-    )
-    .unwrap();
-    let log = crate::cli::Log::new(true);
-    let glb = dir.path().join("fist.glb");
-    // The angles exactly as given: the viewer's LBS reproduces the library's.
-    let exact = PoseOptions {
-        resolve_contacts: false,
-        ..PoseOptions::default()
-    };
-    let s = pose_command_with(dir.path(), "fist", &glb, &exact, &log).unwrap();
-    assert!(s.warnings.is_empty());
-    let scene = crate::io::gltf::read_gltf(&glb, crate::io::Units::Metres).unwrap();
-    let viewer = gltf::viewer_positions(&scene.meshes[0]).unwrap();
-    let h = IndividualHand::load(dir.path(), WeightMethod::Template).unwrap();
-    let lbs = h.posed_skin(&named_pose("fist").unwrap(), Skinning::Linear);
-    for (a, b) in viewer.iter().zip(&lbs.vertices) {
-        assert!((a - b).norm() < 5e-3);
-    }
-    // By default the digits give way, each change named.
-    let s = pose_command(dir.path(), "fist", &dir.path().join("fist2.glb"), &log).unwrap();
-    assert!(s.penetration_mm <= 1.0, "{s:?}");
-    assert!(s.warnings.iter().all(|w| w.contains("apart")), "{s:?}");
-    let pose_file = dir.path().join("p.toml");
-    std::fs::write(&pose_file, "I_PIP = 150\nM_MCP = [30, 0, 0]\n").unwrap();
-    let obj = dir.path().join("p.obj");
-    let s = pose_command(dir.path(), pose_file.to_str().unwrap(), &obj, &log).unwrap();
-    // The clamp, and the missing tet mesh: the skin is then plain DQS.
-    assert_eq!(s.warnings.len(), 2, "{s:?}");
-    assert!(s.warnings[0].contains("I_PIP") && s.warnings[0].contains("p.toml"));
-    assert!(s.warnings[1].contains("tet.vtk"), "{s:?}");
-    let posed = crate::io::obj::read_obj(&obj, crate::io::Units::Millimetres).unwrap();
-    let (want, _) = read_pose_file(&pose_file).unwrap();
-    let dqs = h.posed_skin(&want, Skinning::DualQuaternion);
-    assert_eq!(posed.faces, dqs.faces);
-    for (a, b) in posed.vertices.iter().zip(&dqs.vertices) {
-        assert!((a - b).norm() < 1e-3, "OBJ precision");
-    }
-    let e = pose_command(dir.path(), "fist", &dir.path().join("x.stl"), &log)
-        .unwrap_err()
-        .to_string();
-    assert!(e.contains("x.stl") && e.contains(".glb"), "{e}");
-}
-
-/// Issue 7's "the same deformation applied to the tetrahedral mesh's nodes": the template's
+/// The requirement "the same deformation applied to the tetrahedral mesh's nodes": the template's
 /// tet mesh posed with [`tet_node_weights`] reproduces the rest mesh at zero angles, keeps its
 /// surface on the posed skin (each boundary node at the same barycentric point of the posed
 /// skin face it is bound to, before the exact placement within the skinning's blend error),
@@ -579,7 +519,7 @@ fn tet_nodes_follow_the_skin() {
     }
 }
 
-/// Issue 7's fist goal on individual hands. The built-in `fist` is a set of angles; on a
+/// The fist goal on individual hands. The built-in `fist` is a set of angles; on a
 /// broader or differently built hand the same angles close digits into each other, even on
 /// the *true* hand of a simulated subject (seed 2: the thumb enters the index by about 10 mm;
 /// seed 72: the ring the middle by about 7 mm), so this is not a reconstruction error.

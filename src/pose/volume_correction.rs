@@ -1,5 +1,4 @@
-//! Segment-volume preservation for dual-quaternion skinning (issue 7, "volume change of each
-//! finger segment within 5 % for dual-quaternion skinning").
+//! Segment-volume preservation for dual-quaternion skinning.
 //!
 //! # Why DQS alone loses volume at the finger joints
 //! Where one joint rotates by θ about axis `a` through its centre and the skinning blends two
@@ -29,17 +28,19 @@
 //! The same field then moves the skin's vertices, and the mesh's boundary nodes are placed on
 //! that skin ([`super::pose_tet_nodes`]).
 
-use super::quality::{finger_volume_changes, segment_volumes, tet_segments};
+use super::quality::{finger_volume_changes, is_finger_segment, segment_volumes, tet_segments};
 use super::skinning::{SkinBinding, Skinning};
 use super::IndividualHand;
 use crate::anatomy::Link;
 use crate::error::{Error, Result};
 use crate::geometry::{Point, TriMesh, Vec3};
+use crate::io::Units;
 use crate::skeleton::forward_kinematics::link_transforms;
 use crate::skeleton::{Pose, Skeleton};
 use crate::template::{LinkWeights, TemplateHand};
 use crate::tet::{place_boundary_nodes, SurfaceBinding, TemplateTet};
 use nalgebra::{DMatrix, DVector, Isometry3};
+use std::path::Path;
 
 /// Options of [`preserve_segment_volumes`].
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -71,16 +72,6 @@ pub struct VolumeCorrection {
     pub worst_before: f64,
     /// And after.
     pub worst_after: f64,
-}
-
-/// Whether link `l` is a finger segment (a phalanx or the thumb metacarpal), the segments whose
-/// volume is kept.
-pub fn is_finger_segment(l: usize) -> bool {
-    Link::ALL
-        .get(l)
-        .and_then(|l| l.joint())
-        .and_then(|j| j.finger())
-        .is_some()
 }
 
 /// Per point, the bulge basis of the module's field: the mixedness `1 − max w` and, per finger
@@ -378,4 +369,29 @@ impl VolumeRig {
         };
         Ok((skin, nodes, correction))
     }
+}
+/// The [`VolumeRig`] of the `reconstruct` folder `model_dir`: its tetrahedral mesh
+/// (`tet.vtk`, homologous to the template's) with the template's node weights. Errors naming
+/// `tet.vtk` when it is missing or not homologous to the template's tet mesh (made by another
+/// version or other stuffing parameters: re-run reconstruct).
+pub fn volume_rig(hand: &IndividualHand, model_dir: &Path) -> Result<VolumeRig> {
+    let path = model_dir.join("tet.vtk");
+    let tet = crate::io::vtk::read_vtk(&path, Units::Millimetres)?;
+    let template = crate::template::load_template(hand.side)?;
+    let prepared = crate::tet::TemplateTet::prepare(&template, None)?;
+    if tet.n_nodes() != prepared.tet.n_nodes() || tet.tets != prepared.tet.tets {
+        return Err(Error::input(
+            &path,
+            format!(
+                "{} nodes / {} tetrahedra, not homologous to the {} template's tet mesh ({} / {}); \
+                 re-run reconstruct",
+                tet.n_nodes(),
+                tet.n_tets(),
+                hand.side,
+                prepared.tet.n_nodes(),
+                prepared.tet.n_tets()
+            ),
+        ));
+    }
+    VolumeRig::new(&template, &prepared, tet.nodes)
 }

@@ -1,6 +1,6 @@
 //! Skinning weights of the individual skin, per vertex over [`Link::ALL`].
 //!
-//! Two sources (issue 7):
+//! Two sources:
 //! * [`template_weights`]: the template's weights carried over by homology. The fitted skin has
 //!   the template's vertices in the same order (seed paper section 3.5), so vertex `i` of the
 //!   skin is the same anatomical point as vertex `i` of the template and keeps its weights.

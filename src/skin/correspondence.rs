@@ -82,7 +82,7 @@ pub struct DistanceConstraint {
 }
 
 /// A point inside the mesh written as a fixed affine combination of its vertices,
-/// `p = Σ_i w_i v_i` with `Σ_i w_i = 1`, that should land on `target` (issue 10, step 3: a
+/// `p = Σ_i w_i v_i` with `Σ_i w_i = 1`, that should land on `target` (a
 /// template joint centre expressed in the ring of skin around it, pulled onto the subject's
 /// estimated centre). Unlike the landmarks it is a *soft* term of its own weight: the
 /// estimated centres are a millimetre or so off, the markers a fifth of that.
@@ -180,7 +180,7 @@ pub fn fit_landmarks(
     fit_landmarks_with_points(template, landmarks, distances, &[], params)
 }
 
-/// [`fit_landmarks`] with soft [`PointConstraint`]s as well (issue 10, step 3): each adds
+/// [`fit_landmarks`] with soft [`PointConstraint`]s as well: each adds
 /// `w (Σ_i w_i v_i − target)²` per coordinate to the energy. Errors as [`fit_landmarks`], and
 /// a point constraint with a vertex out of range, weights not summing to one, or a non-finite
 /// target or weight.

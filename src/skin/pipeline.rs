@@ -1,4 +1,5 @@
-//! The skin stage end to end (seed paper sections 3.5 and 3.6, with issue 10's posing):
+//! The skin stage end to end (seed paper sections 3.5 and 3.6, with the template first posed
+//! onto the link model):
 //!
 //! 1. pre-alignment of the template by the four palm landmarks (Horn, rigid, as the paper);
 //! 2. the template posed through its own skeleton and skin weights onto the subject's link
@@ -6,8 +7,7 @@
 //! 3. QEM simplification keeping every landmark and dimension vertex (or none, at
 //!    [`FitResolution::Full`]);
 //! 4. the landmark fit with the caliper dimensions (equation 2) and, as soft terms, the
-//!    subject's estimated joint centres expressed in the ring of skin around each joint
-//!    (issue 10, step 3);
+//!    subject's estimated joint centres expressed in the ring of skin around each joint;
 //! 5. the transfer back to the high-resolution template (equation 3);
 //! 6. section 3.6 is [`super::section_centre`], applied by the caller to the link model.
 
@@ -31,7 +31,7 @@ use std::str::FromStr;
 /// Faces of the simplified template the fit runs on (the seed paper: 992).
 pub const LOW_FACES: usize = 1000;
 
-/// Default weight of the joint-centre terms (issue 10, step 3), relative to the mean diagonal
+/// Default weight of the joint-centre terms, relative to the mean diagonal
 /// of the correspondence energy's matrix: **off**. Measured on the validation suite (README,
 /// "Skin"), weights 0.1 and 1 made the skin worse on average (typical-l1: 0.59 -> 0.67 -> 0.87
 /// mm mean), because the estimated centres are 1-2 mm off and a ring of skin follows them;
@@ -70,9 +70,9 @@ impl FromStr for FitResolution {
 pub struct SkinOptions {
     /// Mesh the fit runs on.
     pub resolution: FitResolution,
-    /// Pose the template onto the link model before the fit (issue 10, step 2).
+    /// Pose the template onto the link model before the fit.
     pub pose_template: bool,
-    /// Weight of the joint-centre terms (issue 10, step 3); 0 leaves them out.
+    /// Weight of the joint-centre terms; 0 leaves them out.
     pub centre_weight: f64,
     /// Weights and stopping rule of the correspondence optimisation.
     pub fit: FitParams,
@@ -387,7 +387,7 @@ fn centre_joints() -> Vec<Joint> {
         .collect()
 }
 
-/// Vertices around joint `j` and affine weights reproducing its centre (issue 10, step 3).
+/// Vertices around joint `j` and affine weights reproducing its centre.
 ///
 /// The ring: vertices of the two links the joint connects, in two slabs just proximal and
 /// just distal of the joint's plane (normal to its link), within 16 mm of the centre, one per
@@ -503,7 +503,7 @@ mod tests {
     /// without posing is measurably further off.
     #[test]
     fn posed_fit_is_homologous_and_near_the_reference() {
-        // Issue 10's goal was set against the first capture model; against the present one
+        // The goal was set against the first capture model; against the present one
         // (landmark markers placed off their points, seated postures off the static one) this
         // subject misses it (README, "Accuracy regression check").
         let (s, t, model) = subject_template_model_with(
@@ -543,7 +543,7 @@ mod tests {
         assert!(fit.converged);
         let (mean, max) = surface(&fit.high);
         eprintln!("posed fit vs reference: mean {mean:.2} mm, max {max:.2} mm");
-        // Issue 10's accuracy goal on a subject in a varied posture.
+        // The accuracy goal on a subject in a varied posture.
         assert!(mean < 1.0 && max < 5.0, "mean {mean} max {max}");
         assert!(fit.dimension_residuals_mm.values().all(|r| r.abs() < 0.02));
         let shared = ["I_MCP_LAT", "L_MCP_LAT", "WRIST_RAD", "WRIST_ULN"];

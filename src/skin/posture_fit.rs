@@ -1,5 +1,5 @@
-//! The template's posture fitted to the subject's link model before the landmark fit (issue 10,
-//! step 2).
+//! The template's posture fitted to the subject's link model before the landmark fit, so
+//! that the fit starts from the subject's posture.
 //!
 //! A subject never holds the reference posture exactly like the template: fingers spread or
 //! closed by 5-15°, flexed by up to 20°, the thumb higher or lower. Sumner & Popović's

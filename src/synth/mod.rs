@@ -154,7 +154,7 @@ pub enum Posture {
     /// The template's own posture.
     Template,
     /// Fingers spread or closed by 5-15°, flexed 0-20° at MCP and PIP, thumb 10-20° higher or
-    /// lower: how seated subjects really differ (issue 10).
+    /// lower: how seated subjects really differ.
     Varied,
 }
 

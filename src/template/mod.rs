@@ -6,7 +6,6 @@
 pub mod generic_hand;
 pub mod landmark_rule;
 pub mod picture;
-pub mod skinned;
 pub mod spec;
 
 pub use generic_hand::{load_base_hand, BaseHand, LinkWeights};

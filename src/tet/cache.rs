@@ -7,9 +7,9 @@
 //! File layout (little-endian): magic `ERGOTET\0`, key `u64`, node count `u64`, tetrahedron
 //! count `u64`, nodes as `3 × f64`, tetrahedra as `4 × u32`.
 
-use super::mesh::TetMesh;
 use super::stuffing::{StuffingParams, ALGORITHM_VERSION};
 use crate::error::Result;
+use crate::geometry::tet_mesh::TetMesh;
 use crate::geometry::{Point, TriMesh};
 use crate::io::atomic::write_bytes_atomic;
 use std::path::{Path, PathBuf};

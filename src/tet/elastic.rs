@@ -20,9 +20,9 @@
 //! exactly (to the solver's rounding), as a homogeneous deformation is also the equilibrium of a
 //! continuum elastic body.
 
-use super::mesh::TetMesh;
 use crate::error::{Error, Result};
 use crate::geometry::sparse_cholesky::{CholeskyError, SparseCholesky};
+use crate::geometry::tet_mesh::TetMesh;
 use crate::geometry::{Point, Vec3};
 use faer::sparse::Triplet;
 use faer::Mat;

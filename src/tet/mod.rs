@@ -15,12 +15,11 @@
 
 pub mod cache;
 pub mod elastic;
-pub mod mesh;
 pub mod stuffing;
 pub mod transfer;
 
+pub use crate::geometry::tet_mesh::{Stats, TetMesh, TetQuality};
 pub use elastic::{ArapOptions, ElasticSolver, ElasticStats};
-pub use mesh::{Stats, TetMesh, TetQuality};
 pub use stuffing::{isosurface_stuffing, StuffingParams};
 pub use transfer::{bind_boundary, place_boundary, place_boundary_nodes, SurfaceBinding};
 

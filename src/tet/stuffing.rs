@@ -47,9 +47,9 @@
 //! where the stencils are exact subdivisions of the BCC tetrahedron; warping can then show up as
 //! an inverted element instead of being silently re-oriented.
 
-use super::mesh::{tet_signed_volume, TetMesh};
 use crate::error::{Error, Result};
 use crate::geometry::closest_point::{AabbTree, PseudoNormals};
+use crate::geometry::tet_mesh::{tet_signed_volume, TetMesh};
 use crate::geometry::{Point, TriMesh, Vec3};
 use rayon::prelude::*;
 use std::collections::HashMap;

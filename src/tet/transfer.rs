@@ -7,9 +7,9 @@
 //! points *on* the face: the offset from the face is zero, so only the in-plane (barycentric)
 //! part of the frame remains, and it is exact whatever the face's deformation.
 
-use super::mesh::TetMesh;
 use crate::error::{Error, Result};
 use crate::geometry::closest_point::AabbTree;
+use crate::geometry::tet_mesh::TetMesh;
 use crate::geometry::{Point, TriMesh};
 use rayon::prelude::*;
 

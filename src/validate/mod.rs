@@ -16,6 +16,7 @@ pub mod report;
 pub mod report_html;
 pub mod report_md;
 pub mod report_tables;
+pub mod subject_validation;
 pub mod suite_index;
 pub mod surface_error;
 pub mod surface_regions;
@@ -24,5 +25,6 @@ pub mod thresholds;
 
 pub use dimension_accuracy::{dimension_accuracy, DimensionAccuracy};
 pub use link_accuracy::{link_accuracy, JointError, LinkAccuracy};
-pub use report::{validate_subject, SubjectValidation};
+pub use report::validate_subject;
+pub use subject_validation::SubjectValidation;
 pub use surface_error::{surface_error, SurfaceError};

@@ -3,8 +3,8 @@
 //! editor.
 
 use super::charts::Figure;
-use super::report::{ReportFigures, SubjectValidation};
 use super::report_tables::{self as tables, Table};
+use super::subject_validation::{ReportFigures, SubjectValidation};
 
 /// Where the runtime table goes until the report's own time is known.
 pub const RUNTIME_PLACEHOLDER: &str = "<!--ergohand:runtime-md-->";

@@ -1,6 +1,6 @@
 //! The tables of a subject's report, built once and written both as HTML and as Markdown.
 
-use super::report::SubjectValidation;
+use super::subject_validation::SubjectValidation;
 use crate::anatomy::Joint;
 
 /// One table cell.
@@ -544,7 +544,7 @@ mod tests {
     use super::*;
     use crate::anatomy::Side;
     use crate::validate::dimension_accuracy::{DimensionAccuracy, DimensionError};
-    use crate::validate::report::References;
+    use crate::validate::subject_validation::References;
     use std::collections::BTreeMap;
 
     fn validation(reference_ply: bool, truth_json: bool) -> SubjectValidation {

@@ -2,9 +2,9 @@
 //! figures and a small error map, linked to the subject's own report), the suite's summary per
 //! preset, and the repeatability of the link lengths over repeated sessions of one hand.
 
-use super::report::SubjectValidation;
 use super::report_html::{esc, page, png_data_uri, table_html};
 use super::report_tables::{link_medians, signed, Cell, Table};
+use super::subject_validation::SubjectValidation;
 use crate::synth::SynthOptions;
 use std::collections::BTreeMap;
 use std::path::{Component, Path, PathBuf};

@@ -461,7 +461,8 @@ mod tests {
         // an out-of-range vertex (no region: left out).
         let rev = [30.0, 40.0, 2.0, 4.0, 9.0];
         let nearest = [0, 4, 1, 3, usize::MAX];
-        let s = surface_regions(&d, Some((&rev, &nearest)), &regions, Path::new("skin.obj")).unwrap();
+        let s =
+            surface_regions(&d, Some((&rev, &nearest)), &regions, Path::new("skin.obj")).unwrap();
         let f = s.get(Region::Fingers).unwrap();
         assert_eq!((f.vertices, f.mean_mm, f.max_mm), (2, 2.0, 3.0));
         assert_eq!(s.get(Region::Wrist).unwrap().mean_mm, 15.0);

@@ -1,5 +1,4 @@
-//! The tetrahedral mesh's quality per subject (issue 6, "Quality (on every `validation/`
-//! subject)"), read from the `tet` section `reconstruct` writes in `report.json`.
+//! The tetrahedral mesh's quality per subject, read from the `tet` section `reconstruct` writes in `report.json`.
 
 use crate::error::{Error, Result};
 use serde::Serialize;
@@ -56,7 +55,7 @@ pub fn read_tet_quality(model: &Path) -> Result<TetQualityRow> {
 /// A markdown section with one row per `(subject, row)`.
 pub fn tet_quality_markdown(rows: &[(String, TetQualityRow)]) -> String {
     let mut md = String::from(
-        "\n## Tetrahedral mesh (section 3.7)\n\nFrom each subject's `report.json`. Issue 6 asks: \
+        "\n## Tetrahedral mesh (section 3.7)\n\nFrom each subject's `report.json`. The goals: \
          no inverted tetrahedron, the subject's quality not much worse than the template's, \
          boundary within 0.05 mm of the skin, volume within 1 %.\n\n\
          | subject | inverted | min dihedral template / subject (deg) | max dihedral subject (deg) \

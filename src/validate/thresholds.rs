@@ -1,4 +1,4 @@
-//! Accuracy regression thresholds (issue 9): the figures a reconstruction of a simulated subject
+//! Accuracy regression thresholds: the figures a reconstruction of a simulated subject
 //! must not exceed, kept in `validation/thresholds.toml` and set from measured figures with a
 //! documented margin (see the file's header). Used by `ergohand validate --suite` (the whole
 //! suite, table `[subject.NAME]`) and by `tests/accuracy_regression.rs` (the CI subset, table

@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""ergohand's elastic tet solve against a Bullet soft body on the same mesh (issue 6).
+"""ergohand's elastic tet solve against a Bullet soft body on the same mesh.
 
 Usage: python3 validation/tools/softbody_compare.py EXPORT_DIR [--out FILE.json] [options]
 

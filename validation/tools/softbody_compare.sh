@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Issue 6: ergohand's elastic tet solve against a Bullet (pybullet) Neo-Hookean soft body on the
+# ergohand's elastic tet solve against a Bullet (pybullet) Neo-Hookean soft body on the
 # same mesh, for one simulated subject, at each stuffing spacing in $SPACINGS (mm; default
 # "6 4.5"). The default 3 mm mesh (157k tetrahedra) is exported too, for ergohand's own figures,
 # but pybullet 3.2.7 cannot load it (its loadSoftBody overflows an 8 MB buffer above ~55k

@@ -4,12 +4,12 @@
 //! and skeleton, in the rest pose. Posing it in a viewer rotates each link about its joint
 //! centre, as [`crate::skeleton::forward_kinematics`] does.
 
-use super::TemplateHand;
 use crate::io::gltf::Scene;
+use crate::template::TemplateHand;
 
 /// The scene of the skinned template `hand` at rest.
 pub fn skinned_scene(name: &str, hand: &TemplateHand) -> Scene {
-    crate::pose::gltf::skinned_scene(name, &hand.mesh, &hand.weights, &hand.skeleton, None)
+    super::gltf::skinned_scene(name, &hand.mesh, &hand.weights, &hand.skeleton, None)
 }
 
 #[cfg(test)]

@@ -1,8 +1,8 @@
 //! `ergohand batch SUBJECTS_DIR --out DIR [--jobs N]`: every subject folder of `SUBJECTS_DIR`
-//! reconstructed as `ergohand reconstruct` would ([`crate::cli::reconstruct_with`]) into
+//! reconstructed as `ergohand reconstruct` would ([`super::reconstruct_with`]) into
 //! `DIR/<subject folder name>/`, several at once, with one progress bar, a summary table and
 //! skipping of subjects whose outputs were made from the very bytes of their inputs (the content
-//! fingerprint `report.json` records, [`crate::cli::reconstruct_fingerprint`]) and are newer
+//! fingerprint `report.json` records, [`super::reconstruct_fingerprint`]) and are newer
 //! than them.
 //!
 //! Concurrency, and why it is safe:
@@ -21,8 +21,9 @@
 //!   concurrent writers (threads, or processes on a cluster sharing the cache) never share one.
 //! - **Outputs** are per subject (`DIR/<name>/`); the summary is written once, at the end.
 
+use super::reconstruct::{reconstruct_fingerprint, reconstruct_job};
+use super::Voice;
 use crate::anatomy::Side;
-use crate::cli::{self, Log};
 use crate::error::{Error, Result};
 use crate::io::atomic;
 use crate::mocap::subject::{Subject, SUBJECT_FILE};
@@ -34,7 +35,7 @@ use std::sync::Mutex;
 use std::time::{Instant, SystemTime};
 
 /// The files `ergohand reconstruct` writes into its output folder (spec section 3 and
-/// [`crate::cli::reconstruct_with`]); a subject is up to date when all of them exist, are
+/// [`super::reconstruct_with`]); a subject is up to date when all of them exist, are
 /// newer than every input, and `report.json` records the inputs' current fingerprint.
 pub const OUTPUTS: [&str; 7] = crate::io::output_paths::MODEL_FILES;
 
@@ -245,7 +246,7 @@ pub fn inputs(subject_dir: &Path) -> Result<Vec<PathBuf>> {
 
 /// Were `out`'s [`OUTPUTS`] made from the inputs of `subject_dir` as they are now, with
 /// `opts`? All must exist and be newer than every input, and `report.json`'s `inputs_fnv1a`
-/// must equal the inputs' content fingerprint now ([`crate::cli::reconstruct_fingerprint`]),
+/// must equal the inputs' content fingerprint now ([`super::reconstruct_fingerprint`]),
 /// so a subject folder replaced with preserved timestamps is redone. `false` whenever anything
 /// cannot be read (a missing output, an unreadable `subject.toml`, a missing trial), so such a
 /// subject is run and reports its own error.
@@ -258,7 +259,7 @@ pub fn up_to_date(subject_dir: &Path, out: &Path, opts: &SkinOptions) -> bool {
         .and_then(|t| serde_json::from_str::<serde_json::Value>(&t).ok())
         .and_then(|v| v["inputs_fnv1a"].as_str().map(str::to_string));
     let now = Subject::load(subject_dir)
-        .and_then(|s| cli::reconstruct_fingerprint(&s, opts))
+        .and_then(|s| reconstruct_fingerprint(&s, opts))
         .ok();
     matches!((recorded, now), (Some(r), Some(n)) if r == n)
 }
@@ -284,13 +285,8 @@ fn newer_than_inputs(subject_dir: &Path, out: &Path) -> bool {
 
 /// Run the batch and write `DIR/batch-summary.md` and `.json`. Failing subjects are in the
 /// summary (status `failed`, their one-line error); the `Err` case is only for the batch itself
-/// (no subjects, bad `--jobs`, an unwritable `DIR`). See [`batch_command`] for the exit status.
-pub fn run(
-    subjects_dir: &Path,
-    out: &Path,
-    opts: &BatchOptions,
-    log: &Log,
-) -> Result<BatchSummary> {
+/// (no subjects, bad `--jobs`, an unwritable `DIR`). See [`batch`] for the exit status.
+pub fn run(subjects_dir: &Path, out: &Path, opts: &BatchOptions) -> Result<BatchSummary> {
     let t0 = Instant::now();
     let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
     if opts.jobs == Some(0) {
@@ -306,11 +302,11 @@ pub fn run(
     std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
     let removed = remove_stale_temporaries(out, &subjects);
     if !removed.is_empty() {
-        log.info(format!(
+        log::info!(
             "batch: removed {} temporary files left by an interrupted run (e.g. {})",
             removed.len(),
             removed[0].display()
-        ));
+        );
     }
 
     let mut rows: Vec<Option<SubjectOutcome>> = vec![None; subjects.len()];
@@ -337,17 +333,17 @@ pub fn run(
         } else {
             String::new()
         };
-        log.info(format!(
+        log::info!(
             "batch: {skipped} of {} subjects up to date (outputs made from the same subject.toml, trials and options), skipped{list}",
             subjects.len()
-        ));
+        );
     }
     let (jobs, clamped) = clamp_jobs(opts.jobs, cores, todo.len());
     if let (Some(asked), false) = (clamped, todo.is_empty()) {
-        log.warn(format!(
+        log::warn!(
             "batch: --jobs {asked} lowered to {jobs} ({JOBS_PER_CORE} per core on {cores} cores, \
              at most one per subject to do)"
-        ));
+        );
     }
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(jobs)
@@ -355,11 +351,11 @@ pub fn run(
         .build()
         .map_err(|e| Error::invalid(format!("--jobs {jobs}: cannot start the threads: {e}")))?;
     if !todo.is_empty() {
-        log.info(format!(
+        log::info!(
             "batch: reconstructing {} subjects with {jobs} threads into {}",
             todo.len(),
             out.display()
-        ));
+        );
     }
 
     // The template's tet stage (cached mesh, binding, factorisation) once per hand, shared by
@@ -388,7 +384,7 @@ pub fn run(
         prepared.iter().find(|p| p.side == hand)
     };
 
-    let pb = log.progress(todo.len() as u64, "batch");
+    let pb = super::progress(todo.len() as u64, "batch");
     let next = AtomicUsize::new(0);
     let done = Mutex::new(Vec::new());
     std::thread::scope(|scope| {
@@ -402,7 +398,7 @@ pub fn run(
                 let result = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
                     pool.install(|| {
                         let shared = prepared_for(k);
-                        cli::reconstruct_prepared(dir, &sout, &opts.skin, shared, &Log::new(true))
+                        reconstruct_job(dir, &sout, &opts.skin, shared, Voice::Nested)
                     })
                 }));
                 let seconds = t.elapsed().as_secs_f64();
@@ -420,7 +416,7 @@ pub fn run(
                 };
                 if let Some(e) = &error {
                     // Errors are shown even with --quiet, above the bar.
-                    pb.suspend(|| eprintln!("error: subject {name} failed: {e}"));
+                    pb.suspend(|| log::error!("subject {name} failed: {e}"));
                 }
                 let row = SubjectOutcome {
                     subject: name.clone(),
@@ -460,7 +456,7 @@ pub fn run(
     atomic::write_bytes_atomic(&out.join(SUMMARY_MD), md.as_bytes())?;
     let json = serde_json::to_string_pretty(&summary).expect("serialisable");
     atomic::write_bytes_atomic(&out.join(SUMMARY_JSON), json.as_bytes())?;
-    log.info(md.trim_end());
+    log::info!("{}", md.trim_end());
     Ok(summary)
 }
 
@@ -508,13 +504,8 @@ pub fn remove_stale_temporaries(out: &Path, subjects: &[(String, PathBuf)]) -> V
 
 /// `ergohand batch`: [`run`], then an error naming the failed subjects (so the command exits
 /// non-zero) when any failed.
-pub fn batch_command(
-    subjects_dir: &Path,
-    out: &Path,
-    opts: &BatchOptions,
-    log: &Log,
-) -> Result<BatchSummary> {
-    let summary = run(subjects_dir, out, opts, log)?;
+pub fn batch(subjects_dir: &Path, out: &Path, opts: &BatchOptions) -> Result<BatchSummary> {
+    let summary = run(subjects_dir, out, opts)?;
     let failed = summary.failed();
     if failed.is_empty() {
         return Ok(summary);
@@ -576,7 +567,7 @@ mod tests {
         let up_to_date = |s: &Path, o: &Path| up_to_date(s, o, &opts);
         // No outputs yet.
         assert!(!up_to_date(&s, &o));
-        let fingerprint = cli::reconstruct_fingerprint(&Subject::load(&s).unwrap(), &opts).unwrap();
+        let fingerprint = reconstruct_fingerprint(&Subject::load(&s).unwrap(), &opts).unwrap();
         for f in OUTPUTS {
             let text = if f == "report.json" {
                 format!("{{\"inputs_fnv1a\": \"{fingerprint}\"}}")

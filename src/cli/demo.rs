@@ -1,0 +1,159 @@
+//! `ergohand demo`: every stage on the default subject.
+
+use super::grasp::demo_bottle;
+use super::pose::{pose_job, PoseOptions};
+use super::reconstruct::reconstruct_job;
+use super::template::template;
+use super::validate::validate_job;
+use super::{create_dir, Voice};
+use crate::anatomy::Side;
+use crate::error::Result;
+use crate::skin::pipeline::SkinOptions;
+use crate::synth::{self, SynthOptions};
+use std::path::Path;
+use std::time::Instant;
+
+/// The default subject of the demo: seed 1, typical errors, right hand.
+pub fn default_subject_options() -> SynthOptions {
+    SynthOptions::new(1, synth::Preset::Typical)
+}
+
+/// `ergohand demo`: every stage that exists, on the default subject, into `out`.
+///
+/// Today: the template, the simulated default subject, its link model
+/// and the link model's validation against the truth; the skin, tetrahedral mesh,
+/// posing and grasping join as they are built.
+pub fn demo(out: &Path) -> Result<()> {
+    let t0 = Instant::now();
+    create_dir(out)?;
+    let t = template(&out.join("template"), &[Side::Right, Side::Left])?;
+    let subject_dir = out.join("subject");
+    let opts = default_subject_options();
+    let t1 = Instant::now();
+    let s = synth::simulate(&opts)?;
+    synth::write_subject(&subject_dir, &s, true)?;
+    let synth_s = t1.elapsed().as_secs_f64();
+    let model_dir = out.join("model");
+    let report_dir = out.join("report");
+    let t2 = Instant::now();
+    let model = reconstruct_job(
+        &subject_dir,
+        &model_dir,
+        &SkinOptions::default(),
+        None,
+        Voice::Nested,
+    )?;
+    let link_s = t2.elapsed().as_secs_f64();
+    let v = validate_job(&subject_dir, &model_dir, &report_dir, Voice::Nested)?;
+    let fist = pose_job(
+        &model_dir,
+        "fist",
+        &model_dir.join("fist.glb"),
+        &PoseOptions::default(),
+        Voice::Nested,
+    )?;
+    let grasp = demo_bottle(&model_dir, &out.join("grasp"))?;
+    let (acc, surface) = v.against_references(&subject_dir)?;
+    if super::show_summaries() {
+        println!(
+            "ergohand demo: stages run: template, synth, link model, skin (sections 3.5-3.6), tetrahedral mesh, skinned hand, validation report, pose, grasp"
+        );
+        for h in &t.hands {
+            let (lo, hi) = h.mesh.bounds().expect("non-empty template");
+            println!(
+                "  {} template: {} vertices / {} faces, {:.0} x {:.0} x {:.0} mm, {} landmarks",
+                h.side,
+                h.mesh.n_vertices(),
+                h.mesh.n_faces(),
+                hi.x - lo.x,
+                hi.y - lo.y,
+                hi.z - lo.z,
+                h.spec.landmarks.len()
+            );
+        }
+        let frames: usize = s.trials.values().map(|t| t.n_frames()).sum();
+        println!(
+            "  default subject {} (seed {}, {}): {} trials / {} frames, reference surface {} faces, volume {:.0} cm³ (true {:.0} cm³), {:.1} s",
+            s.subject.name,
+            opts.seed,
+            opts.preset.name(),
+            s.trials.len(),
+            frames,
+            s.reference.n_faces(),
+            s.reference.signed_volume() / 1000.0,
+            s.true_skin.signed_volume() / 1000.0,
+            synth_s
+        );
+        let errs = |three: bool| -> Vec<f64> {
+            let mut v: Vec<f64> = acc
+                .joints
+                .iter()
+                .filter(|e| {
+                    crate::anatomy::Joint::from_name(&e.joint).map(|j| j.dof() == 3) == Some(three)
+                })
+                .map(|e| e.centre_mm)
+                .collect();
+            v.sort_by(f64::total_cmp);
+            v
+        };
+        let (e3, e1) = (errs(true), errs(false));
+        println!(
+            "  reconstruction (link model, skin, tet, hand) in {:.2} s, {} warnings; link model centre error vs truth: 3-DOF median {:.2} mm (max {:.2}), 1-DOF median {:.2} mm (max {:.2})",
+            link_s,
+            model.warnings.len(),
+            e3[e3.len() / 2],
+            e3.last().copied().unwrap_or(0.0),
+            e1[e1.len() / 2],
+            e1.last().copied().unwrap_or(0.0)
+        );
+        println!(
+            "  skin: homologous to the template ({} faces); distance to the CT-like reference: mean {:.2} mm, 95th percentile {:.2} mm, max {:.2} mm",
+            t.hands[0].mesh.n_faces(),
+            surface.mean_mm,
+            surface.p95_mm,
+            surface.max_mm
+        );
+        println!(
+            "  pose `fist` on the reconstructed hand: deepest finger-finger penetration {:.2} mm ({} joints moved to keep the digits apart)",
+            fist.penetration_mm,
+            fist.warnings.len()
+        );
+        println!(
+            "  grasp of the 60 mm bottle (power, reconstructed hand): force closure {}, epsilon {:.4}, volume {:.2e}, holds {}, contact {:.0} mm², {:.1} s; {}",
+            grasp.force_closure,
+            grasp.epsilon,
+            grasp.volume,
+            grasp.holds,
+            grasp.total_contact_area_mm2,
+            grasp.timings_s.total_s,
+            out.join("grasp").join("grasp.json").display()
+        );
+        println!("  files:");
+        for f in &t.files {
+            println!("    {}", f.display());
+        }
+        println!(
+            "    {}/ (subject.toml, trials/*.c3d, reference.ply, truth.json)",
+            subject_dir.display()
+        );
+        println!("    {}", model_dir.join("link_model.json").display());
+        for f in [
+            "skin.obj",
+            "tet.vtk",
+            "tet.msh",
+            "hand.glb",
+            "fist.glb",
+            "report.json",
+        ] {
+            println!("    {}", model_dir.join(f).display());
+        }
+        println!("    {}", report_dir.join("metrics.json").display());
+        println!("    {}", report_dir.join("report.md").display());
+        println!(
+            "  done in {:.1} s; open {}",
+            t0.elapsed().as_secs_f64(),
+            report_dir.join("report.html").display()
+        );
+    }
+    Ok(())
+}

@@ -1,0 +1,306 @@
+//! `ergohand pose`: the hand of a `reconstruct` folder in a pose, written as GLB, OBJ, VTK or
+//! Gmsh.
+
+use super::Voice;
+use crate::error::{Error, Result};
+use crate::io::{gltf::write_glb, obj::write_obj, Units};
+use crate::pose::{
+    gltf, quality, resolve_finger_contacts, resolve_finger_contacts_on, resolve_pose, volume_rig,
+    IndividualHand, ResolveOptions, Skinning, VolumeOptions, WeightMethod,
+};
+use std::path::{Path, PathBuf};
+
+/// What [`pose`] did.
+#[derive(Clone, Debug)]
+pub struct PoseSummary {
+    /// One line per clamped angle and per angle changed to keep the digits apart, naming the
+    /// joint.
+    pub warnings: Vec<String>,
+    /// The file written.
+    pub written: std::path::PathBuf,
+    /// Deepest finger-finger penetration of the written pose, mm.
+    pub penetration_mm: f64,
+}
+
+/// Options of [`pose_with`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PoseOptions {
+    /// Change the angles as little as needed to keep the digits from entering each other
+    /// ([`resolve_finger_contacts`]); off: the angles exactly as given (after clamping).
+    pub resolve_contacts: bool,
+    /// Keep every finger segment's volume in the posed skin and tet mesh
+    /// ([`crate::pose::volume_correction`]); off: dual-quaternion skinning alone. A GLB is skinned by its
+    /// viewer and never corrected.
+    pub preserve_volume: bool,
+}
+
+impl Default for PoseOptions {
+    fn default() -> Self {
+        PoseOptions {
+            resolve_contacts: true,
+            preserve_volume: true,
+        }
+    }
+}
+
+/// The change of largest magnitude, with its sign.
+fn signed_worst(changes: &[(crate::anatomy::Link, f64)]) -> f64 {
+    changes
+        .iter()
+        .map(|c| c.1)
+        .max_by(|a, b| a.abs().total_cmp(&b.abs()))
+        .unwrap_or(0.0)
+}
+
+/// [`pose_with`] the default options (contacts resolved, volumes kept).
+pub fn pose(model_dir: &Path, pose_arg: &str, out_file: &Path) -> Result<PoseSummary> {
+    pose_with(model_dir, pose_arg, out_file, &PoseOptions::default())
+}
+
+/// `ergohand pose OUT --pose POSE --out FILE`: load the hand of the `reconstruct` folder
+/// `model_dir` ([`IndividualHand::load`], template weights), take the pose from `pose_arg` (a
+/// built-in name of [`crate::pose::NAMED_POSES`] or a `POSE.toml` path), clamp it to the limits with a
+/// warning per joint, and write `out_file` by its extension: `.glb` the skinned hand with the
+/// pose on its joint nodes (a viewer shows it posed and can re-pose it), `.obj` the posed skin
+/// (dual-quaternion skinning), mm; `.vtk` or `.msh` the posed tetrahedral mesh `OUT/tet.vtk`
+/// (its nodes dual-quaternion skinned with [`crate::pose::tet_node_weights`]), mm. Baked outputs keep each
+/// finger segment's volume ([`crate::pose::VolumeRig::pose`], unless `opts.preserve_volume` is off); an
+/// `.obj` of a folder without `tet.vtk` is plain DQS, with a warning.
+///
+/// Unless `opts.resolve_contacts` is off, the angles then give way where the digits of this
+/// hand would enter each other by more than 1 mm, on the skin the output has: LBS for `.glb`,
+/// which viewers skin linearly, DQS for a plain `.obj`, DQS with the volume correction
+/// otherwise ([`resolve_finger_contacts_on`]), with a warning per changed joint.
+pub fn pose_with(
+    model_dir: &Path,
+    pose_arg: &str,
+    out_file: &Path,
+    opts: &PoseOptions,
+) -> Result<PoseSummary> {
+    pose_job(model_dir, pose_arg, out_file, opts, Voice::Command)
+}
+
+/// [`pose_with`], speaking with `voice`.
+pub(crate) fn pose_job(
+    model_dir: &Path,
+    pose_arg: &str,
+    out_file: &Path,
+    opts: &PoseOptions,
+    voice: Voice,
+) -> Result<PoseSummary> {
+    let ext = out_file
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(str::to_ascii_lowercase);
+    if !matches!(
+        ext.as_deref(),
+        Some("glb") | Some("obj") | Some("vtk") | Some("msh")
+    ) {
+        return Err(Error::input(
+            out_file,
+            "unknown output type: the file name must end in .glb or .obj (skin), .vtk or .msh \
+             (tetrahedral mesh)",
+        ));
+    }
+    crate::io::output_paths::check_output_file(
+        out_file,
+        "--out",
+        &crate::io::output_paths::Inputs::files([PathBuf::from(pose_arg)]).with_model(model_dir),
+    )?;
+    let (pose, clamps) = resolve_pose(pose_arg)?;
+    let mut warnings: Vec<String> = clamps.iter().map(|c| format!("{pose_arg}: {c}")).collect();
+    let hand = IndividualHand::load(model_dir, WeightMethod::default())?;
+    let method = if ext.as_deref() == Some("glb") {
+        Skinning::Linear
+    } else {
+        Skinning::DualQuaternion
+    };
+    // The tetrahedral mesh is needed for a volume-kept skin and for a posed mesh.
+    let rig = if ext.as_deref() == Some("glb") {
+        None
+    } else if !opts.preserve_volume && ext.as_deref() == Some("obj") {
+        // The plain DQS skin needs no tetrahedral mesh.
+        None
+    } else if ext.as_deref() == Some("obj") && !model_dir.join("tet.vtk").exists() {
+        warnings.push(format!(
+            "{}: no tet.vtk, so the segment volumes are not kept (dual-quaternion skinning \
+             alone); re-run reconstruct to write it",
+            model_dir.display()
+        ));
+        None
+    } else {
+        Some(volume_rig(&hand, model_dir)?)
+    };
+    let volume_opts = VolumeOptions::default();
+    let (pose, resolved_depth_mm) = if opts.resolve_contacts {
+        let resolve = ResolveOptions::default();
+        // On the skin that is written: the volume correction swells the fingers at their
+        // joints, which would push digits just set apart back into each other.
+        let r = match &rig {
+            Some(rig) if opts.preserve_volume => resolve_finger_contacts_on(
+                &hand,
+                &pose,
+                |p| rig.corrected_skin(&hand, p, &volume_opts),
+                &resolve,
+            )?,
+            _ => resolve_finger_contacts(&hand, &pose, method, &resolve),
+        };
+        warnings.extend(r.describe().into_iter().map(|w| format!("{pose_arg}: {w}")));
+        (r.pose, Some(r.depth_after_mm))
+    } else {
+        (pose, None)
+    };
+    let baked = match rig {
+        None => None,
+        Some(rig) => {
+            let posed = rig.pose(&hand, &pose, opts.preserve_volume, &volume_opts)?;
+            log::log!(
+                voice.info(),
+                "{}",
+                if opts.preserve_volume {
+                    format!(
+                    "segment volumes: worst finger segment {:+.1} % after the bulge correction \
+                     ({} Newton steps; dual-quaternion skinning alone: {:.1} %)",
+                    100.0 * signed_worst(&posed.volume_changes),
+                    posed.correction.iterations,
+                    100.0 * posed.correction.worst_before,
+                )
+                } else {
+                    format!(
+                        "segment volumes: worst finger segment {:+.1} % (dual-quaternion skinning \
+                     alone)",
+                        100.0 * signed_worst(&posed.volume_changes)
+                    )
+                }
+            );
+            Some((rig.tets, posed))
+        }
+    };
+    // Measured on the skin as written: the resolver worked on that very skin (corrected when
+    // the correction is on, else `method`'s), so its figure stands; with the angles kept, it
+    // is measured here.
+    let penetration_mm = resolved_depth_mm.unwrap_or_else(|| {
+        let max_depth = ResolveOptions::default().max_depth_mm;
+        match &baked {
+            Some((_, p)) => quality::finger_penetration(&p.skin, &hand.weights, max_depth),
+            None => quality::finger_penetration(
+                &hand.posed_skin(&pose, method),
+                &hand.weights,
+                max_depth,
+            ),
+        }
+        .depth_mm
+    });
+    for w in &warnings {
+        log::log!(voice.warn(), "{w}");
+    }
+    match ext.as_deref() {
+        Some("glb") => {
+            let scene = gltf::skinned_scene(
+                "hand",
+                &hand.skin,
+                &hand.weights,
+                &hand.skeleton,
+                Some(&pose),
+            );
+            write_glb(out_file, &scene, Units::Metres)?;
+        }
+        Some("vtk") | Some("msh") => {
+            let (tets, b) = baked.ok_or_else(|| Error::invalid("posed tet mesh missing"))?;
+            let posed = crate::tet::TetMesh {
+                nodes: b.nodes,
+                tets,
+            };
+            if ext.as_deref() == Some("vtk") {
+                crate::io::vtk::write_vtk(out_file, &posed, Units::Millimetres)?;
+            } else {
+                crate::io::gmsh::write_msh(out_file, &posed, Units::Millimetres)?;
+            }
+        }
+        _ => {
+            let posed = match baked {
+                Some((_, b)) => b.skin,
+                None => hand.posed_skin(&pose, method),
+            };
+            write_obj(out_file, &posed, Units::Millimetres, None)?;
+        }
+    }
+    log::log!(
+        voice.info(),
+        "pose {pose_arg}: {} -> {} (deepest finger-finger penetration {penetration_mm:.1} mm)",
+        model_dir.display(),
+        out_file.display()
+    );
+    Ok(PoseSummary {
+        warnings,
+        written: out_file.to_path_buf(),
+        penetration_mm,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::anatomy::Side;
+    use crate::pose::{named_pose, read_pose_file};
+    use crate::template::load_template;
+
+    /// `ergohand pose` end to end on a `reconstruct`-style folder holding the template: a built-in
+    /// pose to GLB (read back: skinned, joints posed) and a pose file to OBJ (the DQS posed skin),
+    /// a clamped angle warned by joint, and a bad output extension refused.
+    #[test]
+    fn pose_command_writes_glb_and_obj() {
+        let t = load_template(Side::Right).unwrap();
+        let dir = tempfile::tempdir().unwrap();
+        let doc = serde_json::json!({
+            "units": "mm", "frame": "reference", "hand": "right",
+            "joints": crate::skeleton::record::joint_records(&t.skeleton),
+        });
+        std::fs::write(dir.path().join("link_model.json"), doc.to_string()).unwrap();
+        crate::io::obj::write_obj(
+            &dir.path().join("skin.obj"),
+            &t.mesh,
+            crate::io::Units::Millimetres,
+            None,
+        )
+        .unwrap();
+        let glb = dir.path().join("fist.glb");
+        // The angles exactly as given: the viewer's LBS reproduces the library's.
+        let exact = PoseOptions {
+            resolve_contacts: false,
+            ..PoseOptions::default()
+        };
+        let s = pose_with(dir.path(), "fist", &glb, &exact).unwrap();
+        assert!(s.warnings.is_empty());
+        let scene = crate::io::gltf::read_gltf(&glb, crate::io::Units::Metres).unwrap();
+        let viewer = crate::pose::gltf::viewer_positions(&scene.meshes[0]).unwrap();
+        let h = IndividualHand::load(dir.path(), WeightMethod::Template).unwrap();
+        let lbs = h.posed_skin(&named_pose("fist").unwrap(), Skinning::Linear);
+        for (a, b) in viewer.iter().zip(&lbs.vertices) {
+            assert!((a - b).norm() < 5e-3);
+        }
+        // By default the digits give way, each change named.
+        let s = pose(dir.path(), "fist", &dir.path().join("fist2.glb")).unwrap();
+        assert!(s.penetration_mm <= 1.0, "{s:?}");
+        assert!(s.warnings.iter().all(|w| w.contains("apart")), "{s:?}");
+        let pose_file = dir.path().join("p.toml");
+        std::fs::write(&pose_file, "I_PIP = 150\nM_MCP = [30, 0, 0]\n").unwrap();
+        let obj = dir.path().join("p.obj");
+        let s = pose(dir.path(), pose_file.to_str().unwrap(), &obj).unwrap();
+        // The clamp, and the missing tet mesh: the skin is then plain DQS.
+        assert_eq!(s.warnings.len(), 2, "{s:?}");
+        assert!(s.warnings[0].contains("I_PIP") && s.warnings[0].contains("p.toml"));
+        assert!(s.warnings[1].contains("tet.vtk"), "{s:?}");
+        let posed = crate::io::obj::read_obj(&obj, crate::io::Units::Millimetres).unwrap();
+        let (want, _) = read_pose_file(&pose_file).unwrap();
+        let dqs = h.posed_skin(&want, Skinning::DualQuaternion);
+        assert_eq!(posed.faces, dqs.faces);
+        for (a, b) in posed.vertices.iter().zip(&dqs.vertices) {
+            assert!((a - b).norm() < 1e-3, "OBJ precision");
+        }
+        let e = pose(dir.path(), "fist", &dir.path().join("x.stl"))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("x.stl") && e.contains(".glb"), "{e}");
+    }
+}

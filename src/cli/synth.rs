@@ -1,0 +1,55 @@
+//! `ergohand synth`: a simulated subject folder from the command's options.
+
+use crate::anatomy::Side;
+use crate::error::Result;
+use crate::io::output_paths::{check_output_dir, Inputs};
+use crate::synth::{self, Body, Posture, Preset, SynthOptions};
+use std::path::Path;
+use std::time::Instant;
+
+/// Options of `ergohand synth` from its command-line values.
+pub fn synth_options(
+    seed: u64,
+    preset: Preset,
+    hand: Side,
+    posture: Posture,
+    body: Body,
+    duration: Option<f64>,
+) -> SynthOptions {
+    SynthOptions {
+        hand,
+        posture,
+        body,
+        duration_s: duration,
+        ..SynthOptions::new(seed, preset)
+    }
+}
+
+/// `ergohand synth`: simulate a subject and write its folder.
+pub fn synth(opts: &SynthOptions, out: &Path, force: bool) -> Result<()> {
+    let t0 = Instant::now();
+    check_output_dir(out, &[], "--out", &Inputs::default())?;
+    synth::check_subject_dir(out, force)?;
+    let spinner = super::progress(2, "synth");
+    spinner.set_message("simulating");
+    let s = synth::simulate(opts)?;
+    spinner.inc(1);
+    spinner.set_message("writing");
+    synth::write_subject(out, &s, force)?;
+    spinner.finish_and_clear();
+    let frames: usize = s.trials.values().map(|t| t.n_frames()).sum();
+    log::info!(
+        "synth: {} ({} hand, {} body, preset {}, posture {:?}) -> {}: {} trials, {} frames, reference surface {} faces, {:.1} s",
+        s.subject.name,
+        opts.hand,
+        opts.body.name(),
+        opts.preset.name(),
+        opts.posture,
+        out.display(),
+        s.trials.len(),
+        frames,
+        s.reference.n_faces(),
+        t0.elapsed().as_secs_f64()
+    );
+    Ok(())
+}
