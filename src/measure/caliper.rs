@@ -136,6 +136,22 @@ pub fn loop_extent(
     along: &Vec3,
     slab: Option<(&Vec3, f64, f64)>,
 ) -> Option<f64> {
+    let half_spaces: Vec<(Vec3, f64)> = match slab {
+        None => Vec::new(),
+        Some((dir, a, b)) => vec![(-dir, -a), (*dir, b)],
+    };
+    loop_extent_clipped(l, origin, along, &half_spaces)
+}
+
+/// Extent of a closed loop along `along` over the part of it inside every half-space
+/// `n · (p − origin) <= h` of `half_spaces` (segments clipped at their faces, so the clipped
+/// ends count). `None` when nothing of the loop is inside.
+pub fn loop_extent_clipped(
+    l: &SectionLoop,
+    origin: &Point,
+    along: &Vec3,
+    half_spaces: &[(Vec3, f64)],
+) -> Option<f64> {
     let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
     let mut take = |p: &Point| {
         let s = along.dot(&(p - origin));
@@ -143,32 +159,31 @@ pub fn loop_extent(
         hi = hi.max(s);
     };
     let n = l.points.len();
-    match slab {
-        None => l.points.iter().for_each(&mut take),
-        Some((dir, a, b)) => {
-            let h = |p: &Point| dir.dot(&(p - origin));
-            for i in 0..n {
-                let (p, q) = (l.points[i], l.points[(i + 1) % n]);
-                let (hp, hq) = (h(&p), h(&q));
-                // Clip the segment p + t (q − p), t in [0, 1], to a <= h <= b.
-                let (mut t0, mut t1) = (0.0_f64, 1.0_f64);
-                let dh = hq - hp;
-                if dh.abs() < 1e-15 {
-                    if hp < a || hp > b {
-                        continue;
-                    }
-                } else {
-                    let (ta, tb) = ((a - hp) / dh, (b - hp) / dh);
-                    t0 = t0.max(ta.min(tb));
-                    t1 = t1.min(ta.max(tb));
-                    if t0 > t1 {
-                        continue;
-                    }
+    'segments: for i in 0..n {
+        let (p, q) = (l.points[i], l.points[(i + 1) % n]);
+        // Clip the segment p + t (q − p), t in [0, 1], to every half-space.
+        let (mut t0, mut t1) = (0.0_f64, 1.0_f64);
+        for (dir, h) in half_spaces {
+            let (hp, hq) = (dir.dot(&(p - origin)), dir.dot(&(q - origin)));
+            let dh = hq - hp;
+            if dh.abs() < 1e-15 {
+                if hp > *h {
+                    continue 'segments;
                 }
-                take(&(p + (q - p) * t0));
-                take(&(p + (q - p) * t1));
+            } else {
+                let t = (h - hp) / dh;
+                if dh > 0.0 {
+                    t1 = t1.min(t);
+                } else {
+                    t0 = t0.max(t);
+                }
+            }
+            if t0 > t1 {
+                continue 'segments;
             }
         }
+        take(&(p + (q - p) * t0));
+        take(&(p + (q - p) * t1));
     }
     (hi >= lo).then_some(hi - lo)
 }
@@ -230,8 +245,54 @@ pub fn finger_joint_section(
     let plane = Plane::new(c, d1 + d2).ok_or_else(|| {
         format!("{joint}: the two links meeting the joint point back onto each other")
     })?;
-    section_breadth_thickness(skin, &plane, &c, &skeleton.joint(joint).x())
-        .map_err(|e| format!("at {joint}: {e}"))
+    let at = |e: String| format!("at {joint}: {e}");
+    let loops = plane_section(skin, &plane);
+    if loops.is_empty() {
+        return Err(at("the section plane misses the skin".into()));
+    }
+    let l = enclosing_loop(&loops, &plane, &c).ok_or_else(|| {
+        at(format!(
+            "no closed section loop encloses the joint ({} loops)",
+            loops.len()
+        ))
+    })?;
+    // A finger touching this one (a flexed neighbour, the thumb against the index) joins its
+    // section loop; the caliper's jaws close on this finger alone, so the loop is cut at the
+    // perpendicular bisector between this joint and each other digit's bone crossing inside it.
+    let half_spaces: Vec<(Vec3, f64)> = other_digit_crossings(skeleton, f, &plane)
+        .into_iter()
+        .filter(|x| l.winding_number(&plane, x) != 0)
+        .filter_map(|x| {
+            let n = (x - c).try_normalize(1e-9)?;
+            Some((n, n.dot(&(x - c)) / 2.0))
+        })
+        .collect();
+    let (u, v) = plane.basis(&skeleton.joint(joint).x());
+    let b = loop_extent_clipped(l, &c, &u, &half_spaces);
+    let t = loop_extent_clipped(l, &c, &v, &half_spaces);
+    match (b, t) {
+        (Some(b), Some(t)) => Ok((b, t)),
+        _ => Err(at("nothing of the section is nearer this finger than another".into())),
+    }
+}
+
+/// Where the bones of every digit but `f` (metacarpal of the thumb, phalanges to the tips)
+/// cross `plane`.
+fn other_digit_crossings(skeleton: &Skeleton, f: Finger, plane: &Plane) -> Vec<Point> {
+    let mut out = Vec::new();
+    for g in Finger::ALL.into_iter().filter(|&g| g != f) {
+        let j = g.joints();
+        let mut chain: Vec<Point> = j.iter().map(|&k| skeleton.centre(k)).collect();
+        chain.push(skeleton.distal_end(j[j.len() - 1]));
+        for w in chain.windows(2) {
+            let (p, q) = (w[0], w[1]);
+            let (dp, dq) = (plane.distance(&p), plane.distance(&q));
+            if (dp >= 0.0) != (dq >= 0.0) {
+                out.push(p + (q - p) * (dp / (dp - dq)));
+            }
+        }
+    }
+    out
 }
 
 fn landmark(landmarks: &BTreeMap<String, Point>, name: &str) -> std::result::Result<Point, String> {
@@ -442,6 +503,52 @@ mod tests {
         let c2 = Point::new(17.5, 0.0, 1.0);
         let (b2, _) = section_breadth_thickness(&both, &plane, &c2, &Vec3::x()).unwrap();
         assert!(b2 > 17.5 && b2 < 18.5, "{b2}");
+    }
+
+    /// Two fingers pressed together (two ellipses overlapping by 1 mm, one section loop): the
+    /// loop cut at the perpendicular bisector of their centres reads the first finger alone,
+    /// squeezed at the contact: breadth a₁ + (half the centres' distance), thickness 2 b₁.
+    #[test]
+    fn a_touching_finger_is_cut_off_at_the_bisector() {
+        let (a1, b1, a2, b2) = (8.0, 6.5, 8.5, 6.0);
+        let x2 = a1 + a2 - 1.0;
+        let inside = |x: f64, y: f64, x0: f64, a: f64, b: f64| {
+            ((x - x0) / a).powi(2) + (y / b).powi(2) < 1.0
+        };
+        // The union's outline, star-shaped about the midpoint of the overlap.
+        let mid = (a1 + x2 - a2) / 2.0;
+        let mut pts: Vec<(f64, f64)> = Vec::new();
+        for k in 0..720 {
+            let t = 2.0 * PI * k as f64 / 720.0;
+            let p = (a1 * t.cos(), b1 * t.sin());
+            if !inside(p.0, p.1, x2, a2, b2) {
+                pts.push(p);
+            }
+            let q = (x2 + a2 * t.cos(), b2 * t.sin());
+            if !inside(q.0, q.1, 0.0, a1, b1) {
+                pts.push(q);
+            }
+        }
+        pts.sort_by(|p, q| (p.1).atan2(p.0 - mid).total_cmp(&(q.1).atan2(q.0 - mid)));
+        let fused = prism(&pts, &[-10.0, 0.0, 10.0]);
+        let c = Point::origin();
+        let plane = Plane::new(c, Vec3::z()).unwrap();
+        let loops = plane_section(&fused, &plane);
+        assert_eq!(loops.len(), 1, "the fingers share one loop");
+        let l = &loops[0];
+        let whole = loop_extent(l, &c, &Vec3::x(), None).unwrap();
+        assert!((whole - (x2 + a2 + a1)).abs() < 0.01, "{whole}");
+        let x = Point::new(x2, 0.0, 0.0);
+        let n = (x - c).normalize();
+        let cut = [(n, n.dot(&(x - c)) / 2.0)];
+        let breadth = loop_extent_clipped(l, &c, &Vec3::x(), &cut).unwrap();
+        let thickness = loop_extent_clipped(l, &c, &Vec3::y(), &cut).unwrap();
+        assert!((breadth - (a1 + x2 / 2.0)).abs() < 0.01, "{breadth}");
+        assert!((thickness - 2.0 * b1).abs() < 0.01, "{thickness}");
+        // The cut is symmetric: from the other side the other finger is read.
+        let back = [(-n, -n.dot(&(c - x)) / 2.0)];
+        let b2_read = loop_extent_clipped(l, &x, &Vec3::x(), &back).unwrap();
+        assert!((b2_read - (a2 + x2 / 2.0)).abs() < 0.01, "{b2_read}");
     }
 
     fn template_landmarks(t: &crate::template::TemplateHand) -> BTreeMap<String, Point> {
