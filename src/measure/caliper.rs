@@ -257,14 +257,15 @@ pub fn finger_joint_section(
         ))
     })?;
     // A finger touching this one (a flexed neighbour, the thumb against the index) joins its
-    // section loop; the caliper's jaws close on this finger alone, so the loop is cut at the
-    // perpendicular bisector between this joint and each other digit's bone crossing inside it.
+    // section loop; the caliper's jaws close on this finger alone, so the loop is cut where it
+    // pinches between this joint and each other digit's bone crossing inside it.
     let half_spaces: Vec<(Vec3, f64)> = other_digit_crossings(skeleton, f, &plane)
         .into_iter()
         .filter(|x| l.winding_number(&plane, x) != 0)
         .filter_map(|x| {
             let n = (x - c).try_normalize(1e-9)?;
-            Some((n, n.dot(&(x - c)) / 2.0))
+            let across = plane.normal.cross(&n);
+            Some((n, pinch(l, &c, &n, &across, n.dot(&(x - c)))))
         })
         .collect();
     let (u, v) = plane.basis(&skeleton.joint(joint).x());
@@ -274,6 +275,38 @@ pub fn finger_joint_section(
         (Some(b), Some(t)) => Ok((b, t)),
         _ => Err(at("nothing of the section is nearer this finger than another".into())),
     }
+}
+
+/// Where a loop joining two fingers pinches between them: along the in-plane direction `n` from
+/// `origin` (this finger's joint) to the other finger's bone at distance `length`, the level
+/// `t` in the middle half of that span at which the loop's chord along `across` (in-plane,
+/// perpendicular to `n`) is shortest (the
+/// contact between the two fingers). For two equal fingers it is the perpendicular bisector.
+pub fn pinch(l: &SectionLoop, origin: &Point, n: &Vec3, across: &Vec3, length: f64) -> f64 {
+    let steps = 40;
+    let chord = |t: f64| -> f64 {
+        let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
+        let m = l.points.len();
+        for i in 0..m {
+            let (p, q) = (l.points[i], l.points[(i + 1) % m]);
+            let (hp, hq) = (n.dot(&(p - origin)), n.dot(&(q - origin)));
+            if (hp - t) * (hq - t) <= 0.0 && hp != hq {
+                let x = p + (q - p) * ((t - hp) / (hq - hp));
+                let s = across.dot(&(x - origin));
+                lo = lo.min(s);
+                hi = hi.max(s);
+            }
+        }
+        if hi >= lo {
+            hi - lo
+        } else {
+            f64::INFINITY
+        }
+    };
+    (0..=steps)
+        .map(|k| length * (0.25 + 0.5 * k as f64 / steps as f64))
+        .min_by(|a, b| chord(*a).total_cmp(&chord(*b)))
+        .unwrap_or(length / 2.0)
 }
 
 /// Where the bones of every digit but `f` (metacarpal of the thumb, phalanges to the tips)
@@ -505,21 +538,33 @@ mod tests {
         assert!(b2 > 17.5 && b2 < 18.5, "{b2}");
     }
 
-    /// Two fingers pressed together (two ellipses overlapping by 1 mm, one section loop): the
-    /// loop cut at the perpendicular bisector of their centres reads the first finger alone,
-    /// squeezed at the contact: breadth a₁ + (half the centres' distance), thickness 2 b₁.
+    /// Two fingers pressed together (two ellipses of different sizes overlapping, one section
+    /// loop): the loop cut where it pinches reads the first finger alone, up to the contact:
+    /// breadth from its far side to the x where the two ellipses cross, thickness 2 b₁; and the
+    /// other way round for the second finger.
     #[test]
-    fn a_touching_finger_is_cut_off_at_the_bisector() {
-        let (a1, b1, a2, b2) = (8.0, 6.5, 8.5, 6.0);
-        let x2 = a1 + a2 - 1.0;
+    fn a_touching_finger_is_cut_off_where_the_loop_pinches() {
+        let (a1, b1, a2, b2) = (8.0, 6.5, 10.5, 8.0);
+        let x2 = a1 + a2 - 1.5;
         let inside = |x: f64, y: f64, x0: f64, a: f64, b: f64| {
             ((x - x0) / a).powi(2) + (y / b).powi(2) < 1.0
         };
-        // The union's outline, star-shaped about the midpoint of the overlap.
-        let mid = (a1 + x2 - a2) / 2.0;
+        // Where the two outlines cross: b₁²(1 − x²/a₁²) = b₂²(1 − (x − x₂)²/a₂²), by bisection.
+        let g = |x: f64| b1 * b1 * (1.0 - (x / a1).powi(2)) - b2 * b2 * (1.0 - ((x - x2) / a2).powi(2));
+        let (mut lo, mut hi) = (x2 - a2, a1);
+        for _ in 0..100 {
+            let m = (lo + hi) / 2.0;
+            if (g(m) > 0.0) == (g(lo) > 0.0) {
+                lo = m;
+            } else {
+                hi = m;
+            }
+        }
+        let x_contact = lo;
+        let mid = x_contact;
         let mut pts: Vec<(f64, f64)> = Vec::new();
-        for k in 0..720 {
-            let t = 2.0 * PI * k as f64 / 720.0;
+        for k in 0..1440 {
+            let t = 2.0 * PI * k as f64 / 1440.0;
             let p = (a1 * t.cos(), b1 * t.sin());
             if !inside(p.0, p.1, x2, a2, b2) {
                 pts.push(p);
@@ -538,17 +583,22 @@ mod tests {
         let l = &loops[0];
         let whole = loop_extent(l, &c, &Vec3::x(), None).unwrap();
         assert!((whole - (x2 + a2 + a1)).abs() < 0.01, "{whole}");
-        let x = Point::new(x2, 0.0, 0.0);
-        let n = (x - c).normalize();
-        let cut = [(n, n.dot(&(x - c)) / 2.0)];
+        let step = x2 / 2.0 / 40.0;
+        let t = pinch(l, &c, &Vec3::x(), &Vec3::y(), x2);
+        assert!((t - x_contact).abs() <= step, "pinch {t} vs contact {x_contact}");
+        let cut = [(Vec3::x(), t)];
         let breadth = loop_extent_clipped(l, &c, &Vec3::x(), &cut).unwrap();
         let thickness = loop_extent_clipped(l, &c, &Vec3::y(), &cut).unwrap();
-        assert!((breadth - (a1 + x2 / 2.0)).abs() < 0.01, "{breadth}");
+        assert!((breadth - (a1 + x_contact)).abs() <= step + 0.01, "{breadth}");
         assert!((thickness - 2.0 * b1).abs() < 0.01, "{thickness}");
-        // The cut is symmetric: from the other side the other finger is read.
-        let back = [(-n, -n.dot(&(c - x)) / 2.0)];
+        // From the other finger: its own breadth up to the contact, its own thickness.
+        let x = Point::new(x2, 0.0, 0.0);
+        let t2 = pinch(l, &x, &-Vec3::x(), &Vec3::y(), x2);
+        let back = [(-Vec3::x(), t2)];
         let b2_read = loop_extent_clipped(l, &x, &Vec3::x(), &back).unwrap();
-        assert!((b2_read - (a2 + x2 / 2.0)).abs() < 0.01, "{b2_read}");
+        let t2_read = loop_extent_clipped(l, &x, &Vec3::y(), &back).unwrap();
+        assert!((b2_read - (x2 + a2 - x_contact)).abs() <= step + 0.01, "{b2_read}");
+        assert!((t2_read - 2.0 * b2).abs() < 0.01, "{t2_read}");
     }
 
     fn template_landmarks(t: &crate::template::TemplateHand) -> BTreeMap<String, Point> {

@@ -207,7 +207,9 @@ pub fn add_postures(a: &Pose, b: &Pose) -> Pose {
 /// Fingers cannot pass through each other: where the posture brings two neighbouring fingers
 /// (beyond the web, a third along the proximal phalanx, to the tips) closer than their half
 /// breadths at the PIP plus 0.5 mm, the MCP abduction of both is scaled back toward the neutral
-/// fan, by 20 % a step, until they are apart (at most 20 steps).
+/// fan, by 20 % a step, until they are apart (at most 20 steps). Where it brings the thumb (the
+/// distal half of its metacarpal and its phalanges) that close to any finger's phalanges, every
+/// angle of the thumb's three joints is scaled back toward its neutral opposition the same way.
 pub fn keep_fingers_apart(bs: &BodySkeleton, p: &Proportions, pose: &Pose) -> Pose {
     use crate::skeleton::forward_kinematics::{link_transforms, posed_skeleton};
     let mut pose = pose.clone();
@@ -238,11 +240,47 @@ pub fn keep_fingers_apart(bs: &BodySkeleton, p: &Proportions, pose: &Pose) -> Po
                 clash.extend([a, b]);
             }
         }
-        if clash.is_empty() {
+        // The thumb against every finger: its metacarpal's distal half and phalanges, against
+        // each finger's phalanges from the MCP.
+        let thumb: Vec<Point> = {
+            let [cmc, mcp, ip] = Finger::Thumb.joints().map(|j| posed.centre(j));
+            let tip = posed.tips[Finger::Thumb as usize];
+            let mut out = Vec::new();
+            for (a, b, from) in [(cmc, mcp, 0.5), (mcp, ip, 0.0), (ip, tip, 0.0)] {
+                for k in 0..6 {
+                    let t = from + (1.0 - from) * k as f64 / 5.0;
+                    out.push(a + (b - a) * t);
+                }
+            }
+            out
+        };
+        let thumb_clash = Finger::ALL[1..].iter().any(|&f| {
+            let need = 0.5 * (p.sections[0][0] + p.sections[f as usize][0]) + 0.5;
+            let [m, pi, d] = f.joints().map(|j| posed.centre(j));
+            let tip = posed.tips[f as usize];
+            let mut bone = Vec::new();
+            for (a, b) in [(m, pi), (pi, d), (d, tip)] {
+                for k in 0..6 {
+                    bone.push(a + (b - a) * (k as f64 / 5.0));
+                }
+            }
+            thumb
+                .iter()
+                .any(|x| bone.iter().any(|y| (x - y).norm() < need))
+        });
+        if clash.is_empty() && !thumb_clash {
             break;
         }
         for f in clash {
             pose.angles[f.joints()[0].index()][1] *= 0.8;
+        }
+        if thumb_clash {
+            // Back toward the thumb's neutral opposition, every joint of it.
+            for j in Finger::Thumb.joints() {
+                for a in &mut pose.angles[j.index()] {
+                    *a *= 0.8;
+                }
+            }
         }
     }
     pose
