@@ -83,6 +83,11 @@ enum Command {
         /// Weight of the joint-centre terms of the skin fit; 0 leaves them out.
         #[arg(long, default_value_t = ergohand::skin::pipeline::CENTRE_WEIGHT)]
         centre_weight: f64,
+        /// Caliper rounds of the skin fit: re-fits that correct each dimension's vertex pair
+        /// until a caliper on the skin (the spec's definition) reads the given value; 0 asks
+        /// the pairs for the given values, as the paper does.
+        #[arg(long, default_value_t = ergohand::skin::pipeline::CALIPER_ROUNDS)]
+        caliper_rounds: usize,
     },
     /// Compare a reconstruction with reference.ply / truth.json (each optional) and the
     /// caliper dimensions, and write a report.
@@ -171,7 +176,12 @@ fn main() -> ExitCode {
             fit_resolution,
             no_template_posing,
             centre_weight,
+            caliper_rounds,
         } => cli::skin_options(fit_resolution, !no_template_posing, centre_weight)
+            .map(|o| ergohand::skin::pipeline::SkinOptions {
+                caliper_rounds,
+                ..o
+            })
             .and_then(|opts| cli::reconstruct_with(&subject_dir, &out, &opts))
             .map(|_| ()),
         Command::Validate {

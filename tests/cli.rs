@@ -297,31 +297,34 @@ fn reconstruct_and_validate_a_simulated_subject() {
     let metrics: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("rep/metrics.json")).unwrap())
             .unwrap();
-    // Every given dimension is measured on the skin by its definition; the fit met the
-    // template's vertex pairs for them (within 0.02 mm, report.json), which a caliper
-    // on the skin reads up to a few mm differently (the template's pairs are not the sections'
-    // extremes), so only a plausibility bound here.
+    // Every given dimension is measured on the skin by its definition. The skin fit's caliper
+    // rounds read the same calipers on its own skin: a caliper on skin.obj meets the given
+    // value (this subject is clean: no caliper noise) within the fingers' slack, and the skin
+    // stage's own readings (report.json) agree with validate's, taken from the written files.
     let dims = &metrics["dimensions"];
     assert_eq!(dims["dimensions"].as_array().unwrap().len(), 22, "{dims}");
     assert!(
         dims["not_measured"].as_object().unwrap().is_empty(),
         "{dims}"
     );
-    for d in dims["dimensions"].as_array().unwrap() {
-        let e = d["skin_mm"].as_f64().unwrap() - d["given_mm"].as_f64().unwrap();
-        assert!(e.abs() < 5.0, "{d}");
-    }
     let report: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap();
+    let own = report["skin"]["caliper_residuals_mm"].as_object().unwrap();
+    assert_eq!(own.len(), 22, "{own:?}");
+    let slack = ergohand::skin::pipeline::FINGER_CALIPER_SLACK_MM;
+    for d in dims["dimensions"].as_array().unwrap() {
+        let name = d["name"].as_str().unwrap();
+        let e = d["skin_mm"].as_f64().unwrap() - d["given_mm"].as_f64().unwrap();
+        let bound = if name.starts_with("finger") { slack + 0.3 } else { 0.3 };
+        assert!(e.abs() <= bound, "{d}");
+        let r = own[name].as_f64().unwrap();
+        assert!((r - e).abs() < 0.02, "{name}: skin stage {r}, validate {e}");
+    }
     let pairs = report["skin"]["caliper_pair_residuals_mm"]
         .as_object()
         .unwrap();
     assert_eq!(pairs.len(), 22);
-    assert!(
-        pairs.values().all(|r| r.as_f64().unwrap().abs() <= 0.02),
-        "{pairs:?}"
-    );
-    // the report a person reads, self-contained, with every section and picture.
+    // The report a person reads, self-contained, with every section and picture.
     let rep = out.join("rep");
     let html = std::fs::read_to_string(rep.join("report.html")).unwrap();
     let images = ergohand::validate::report_html::check_self_contained(&html).unwrap();

@@ -55,6 +55,11 @@ struct SkinSummary {
     /// The fit's caliper constraints: distance of each dimension's template vertex pair minus
     /// the given value, mm. Not the dimensions by their definitions (`validate` measures those).
     caliper_pair_residuals_mm: std::collections::BTreeMap<String, f64>,
+    /// Each dimension read on skin.obj by the spec's definition (sections at the link model's
+    /// joints, landmarks under the static trial's markers) minus the given value, mm.
+    caliper_residuals_mm: std::collections::BTreeMap<String, f64>,
+    /// Caliper rounds the skin fit took (re-fits correcting the pairs' lengths).
+    caliper_rounds: usize,
     centre_residuals_mm: std::collections::BTreeMap<String, f64>,
     /// Section 3.6: shift of each 1-DOF centre along its axis onto the skin, mm.
     section_3_6_shift_mm: std::collections::BTreeMap<String, f64>,
@@ -302,6 +307,8 @@ fn reconstruct_stages<'p>(
                 .map(|p| p.direction_residual_deg.clone()),
             landmark_residuals_mm: skin.landmark_residuals_mm.clone(),
             caliper_pair_residuals_mm: skin.dimension_residuals_mm.clone(),
+            caliper_residuals_mm: skin.caliper_residuals_mm.clone(),
+            caliper_rounds: skin.caliper_rounds,
             centre_residuals_mm: skin.centre_residuals_mm.clone(),
             section_3_6_shift_mm: shifts,
             inverted_faces: skin.inverted_faces,
