@@ -315,7 +315,11 @@ fn reconstruct_and_validate_a_simulated_subject() {
     for d in dims["dimensions"].as_array().unwrap() {
         let name = d["name"].as_str().unwrap();
         let e = d["skin_mm"].as_f64().unwrap() - d["given_mm"].as_f64().unwrap();
-        let bound = if name.starts_with("finger") { slack + 0.3 } else { 0.3 };
+        let bound = if name.starts_with("finger") {
+            slack + 0.5
+        } else {
+            0.3
+        };
         assert!(e.abs() <= bound, "{d}");
         let r = own[name].as_f64().unwrap();
         assert!((r - e).abs() < 0.02, "{name}: skin stage {r}, validate {e}");

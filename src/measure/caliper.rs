@@ -273,7 +273,9 @@ pub fn finger_joint_section(
     let t = loop_extent_clipped(l, &c, &v, &half_spaces);
     match (b, t) {
         (Some(b), Some(t)) => Ok((b, t)),
-        _ => Err(at("nothing of the section is nearer this finger than another".into())),
+        _ => Err(at(
+            "nothing of the section is nearer this finger than another".into(),
+        )),
     }
 }
 
@@ -550,7 +552,8 @@ mod tests {
             ((x - x0) / a).powi(2) + (y / b).powi(2) < 1.0
         };
         // Where the two outlines cross: b₁²(1 − x²/a₁²) = b₂²(1 − (x − x₂)²/a₂²), by bisection.
-        let g = |x: f64| b1 * b1 * (1.0 - (x / a1).powi(2)) - b2 * b2 * (1.0 - ((x - x2) / a2).powi(2));
+        let g =
+            |x: f64| b1 * b1 * (1.0 - (x / a1).powi(2)) - b2 * b2 * (1.0 - ((x - x2) / a2).powi(2));
         let (mut lo, mut hi) = (x2 - a2, a1);
         for _ in 0..100 {
             let m = (lo + hi) / 2.0;
@@ -585,11 +588,17 @@ mod tests {
         assert!((whole - (x2 + a2 + a1)).abs() < 0.01, "{whole}");
         let step = x2 / 2.0 / 40.0;
         let t = pinch(l, &c, &Vec3::x(), &Vec3::y(), x2);
-        assert!((t - x_contact).abs() <= step, "pinch {t} vs contact {x_contact}");
+        assert!(
+            (t - x_contact).abs() <= step,
+            "pinch {t} vs contact {x_contact}"
+        );
         let cut = [(Vec3::x(), t)];
         let breadth = loop_extent_clipped(l, &c, &Vec3::x(), &cut).unwrap();
         let thickness = loop_extent_clipped(l, &c, &Vec3::y(), &cut).unwrap();
-        assert!((breadth - (a1 + x_contact)).abs() <= step + 0.01, "{breadth}");
+        assert!(
+            (breadth - (a1 + x_contact)).abs() <= step + 0.01,
+            "{breadth}"
+        );
         assert!((thickness - 2.0 * b1).abs() < 0.01, "{thickness}");
         // From the other finger: its own breadth up to the contact, its own thickness.
         let x = Point::new(x2, 0.0, 0.0);
@@ -597,7 +606,10 @@ mod tests {
         let back = [(-Vec3::x(), t2)];
         let b2_read = loop_extent_clipped(l, &x, &Vec3::x(), &back).unwrap();
         let t2_read = loop_extent_clipped(l, &x, &Vec3::y(), &back).unwrap();
-        assert!((b2_read - (x2 + a2 - x_contact)).abs() <= step + 0.01, "{b2_read}");
+        assert!(
+            (b2_read - (x2 + a2 - x_contact)).abs() <= step + 0.01,
+            "{b2_read}"
+        );
         assert!((t2_read - 2.0 * b2).abs() < 0.01, "{t2_read}");
     }
 
