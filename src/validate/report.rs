@@ -59,6 +59,8 @@ pub struct JointFitSummary {
     pub estimator: String,
     /// Range of motion, degrees.
     pub range_of_motion_deg: f64,
+    /// The centre's bootstrap SD from `link_model.json`, mm (`null` when not recorded).
+    pub centre_sd_mm: Option<f64>,
     /// Every child marker.
     pub markers: Vec<MarkerRadius>,
 }
@@ -71,6 +73,7 @@ impl JointFitSummary {
             trial: f.trial.clone(),
             estimator: f.estimator.clone(),
             range_of_motion_deg: f.range_of_motion_deg,
+            centre_sd_mm: f.centre_sd_mm,
             markers: f
                 .markers
                 .iter()
@@ -110,6 +113,9 @@ pub struct SubjectValidation {
     pub link: Option<LinkAccuracy>,
     /// The model's own link lengths (`link_model.json`), mm: known for every subject.
     pub link_lengths_mm: BTreeMap<String, f64>,
+    /// The link lengths' bootstrap SDs from `link_model.json` (`link_lengths.*.sd_mm`), mm;
+    /// empty for a file without them.
+    pub link_length_sd_mm: BTreeMap<String, f64>,
     /// `skin.obj`'s vertices to `reference.ply`'s surface (`None`: no reference).
     pub surface: Option<SurfaceError>,
     /// `surface` per anatomical region of the skin, and over the hand distal of the wrist
@@ -394,6 +400,15 @@ pub fn validate_subject(
         references,
         link,
         link_lengths_mm: link_lengths(&joints),
+        link_length_sd_mm: model_json
+            .get("link_lengths")
+            .and_then(|l| l.as_object())
+            .map(|l| {
+                l.iter()
+                    .filter_map(|(k, v)| Some((k.clone(), v.get("sd_mm")?.as_f64()?)))
+                    .collect()
+            })
+            .unwrap_or_default(),
         surface: map.as_ref().map(|m| m.skin_to_reference_stats.clone()),
         surface_regions: regions,
         surface_reverse: map.as_ref().map(|m| m.reference_to_skin_stats.clone()),
