@@ -411,6 +411,47 @@ mod tests {
         assert!(fit.rms < 1e-9 && fit.condition > 1e-3 && fit.n_frames == 150);
     }
 
+    /// The blocks' normal equations sum to the whole sequence's: solved, they give SCoRE's
+    /// and SARA's own answers (a hinge's axis line: its direction and a point on it), and a
+    /// block drawn twice weighs its frames twice (the ball joint stays exact, being exact in
+    /// every frame).
+    #[test]
+    fn block_equations_sum_to_the_whole() {
+        let (parent, child, c_p, a_p) = hinge(5);
+        let block_of: Vec<usize> = (0..parent.len()).map(|t| t / 7).collect();
+        let n_blocks = parent.len().div_ceil(7);
+        let blocks = block_normal_equations(&parent, &child, &block_of, n_blocks).unwrap();
+        let (mut n, mut g) = (Matrix6::zeros(), Vector6::zeros());
+        for (bn, bg) in &blocks {
+            n += bn;
+            g += bg;
+        }
+        let (p, a) = sara_solve(&n, &g).unwrap();
+        let fit = sara_axis(&parent, &child).unwrap();
+        assert!(a.cross(&fit.axis_parent_local).norm() < 1e-9);
+        assert!(a.cross(&a_p).norm() < 1e-9);
+        let off = (p - c_p) - a_p * (p - c_p).dot(&a_p);
+        assert!(off.norm() < 1e-9, "{}", off.norm());
+
+        let mut rng = Rng::new(12);
+        let parent = parent_poses(&mut rng, 90);
+        let rel: Vec<_> = (0..90)
+            .map(|_| UnitQuaternion::from_scaled_axis(rng.gauss3(0.5)))
+            .collect();
+        let c = Point::new(3.0, -9.0, 25.0);
+        let child = child_poses(&parent, &rel, &c, &offset());
+        let block_of: Vec<usize> = (0..90).map(|t| t / 10).collect();
+        let blocks = block_normal_equations(&parent, &child, &block_of, 9).unwrap();
+        let (mut n, mut g) = (Matrix6::zeros(), Vector6::zeros());
+        for b in [0, 0, 3, 8, 8, 8, 5, 2, 1] {
+            n += blocks[b].0;
+            g += blocks[b].1;
+        }
+        let (x, _) = score_solve(&n, &g).unwrap();
+        assert!((Point::new(x[0], x[1], x[2]) - c).norm() < 1e-9);
+        assert!(block_normal_equations(&parent, &child, &block_of, 8).is_err());
+    }
+
     fn hinge(seed: u64) -> (Vec<Isometry3<f64>>, Vec<Isometry3<f64>>, Point, Vec3) {
         let mut rng = Rng::new(seed);
         let parent = parent_poses(&mut rng, 120);

@@ -1777,6 +1777,38 @@ mod tests {
         }
     }
 
+    /// The three-cornered hat: from many hinges' cues with independent errors of known SDs,
+    /// each cue's variance comes back within 10 % and the weights are the normalised inverse
+    /// variances; a cue far better than the others is held to three times the weight of the
+    /// mean variance's cue, and too few hinges give none.
+    #[test]
+    fn cue_weights_recover_independent_variances() {
+        let mut rng = crate::rng::Rng::new(8);
+        let rows = |rng: &mut crate::rng::Rng, sd: [f64; 3]| -> Vec<Vec<f64>> {
+            (0..20_000)
+                .map(|_| {
+                    let level = rng.gauss(0.0, 5.0);
+                    sd.iter().map(|s| level + rng.gauss(0.0, *s)).collect()
+                })
+                .collect()
+        };
+        let (w, v) = cue_weights(&rows(&mut rng, [0.8, 1.0, 1.2])).unwrap();
+        for (got, want) in v.iter().zip([0.64, 1.0, 1.44]) {
+            assert!((got / want - 1.0).abs() < 0.1, "{v:?}");
+        }
+        assert!((w.iter().sum::<f64>() - 1.0).abs() < 1e-12);
+        assert!((w[0] * v[0] - w[2] * v[2]).abs() < 1e-12 && w[0] > w[1] && w[1] > w[2]);
+        let (w, v) = cue_weights(&rows(&mut rng, [0.1, 1.0, 1.0])).unwrap();
+        let mean = (0.01 + 1.0 + 1.0) / 3.0;
+        assert!(
+            (v[0] / (mean / MAX_CUE_WEIGHT_RATIO) - 1.0).abs() < 0.1,
+            "{v:?}"
+        );
+        // 1 / (mean / 3) against 1 and 1: 4.48 / 6.48.
+        assert!((w[0] - 0.691).abs() < 0.03, "{w:?}");
+        assert!(cue_weights(&[vec![0.0, 1.0, 2.0], vec![1.0, 0.0, 0.5]]).is_none());
+    }
+
     /// The chain composes the held poses of the joints between a joint and the palm, parent
     /// first, and is the identity for the joints on the palm and forearm.
     #[test]

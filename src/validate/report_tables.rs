@@ -645,7 +645,9 @@ mod tests {
         assert!(joint_table(&validation(true, false)).is_none());
         assert!(surface_table(&validation(false, false)).is_none());
         let links = link_length_table(&validation(false, false));
-        assert_eq!(links.head.len(), 2);
+        // The model's own lengths and their bootstrap SD (a dash: none recorded).
+        assert_eq!(links.head.len(), 3);
         assert_eq!(links.rows[0][1].text, "45.00");
+        assert_eq!(links.rows[0][2].text, "–");
     }
 }
