@@ -990,7 +990,8 @@ impl Default for LinkOptions {
 
 impl LinkOptions {
     /// The option set called `name`: `default`; `first` (the first link model's method: the
-    /// landmark's level, no bootstrap); `landmark`, `plates` (the default with that level cue).
+    /// landmark's level, no bootstrap); `landmark`, `plates`, `parent-plate`, `child-plate`,
+    /// `landmark-child` (the default with those level cues).
     pub fn named(name: &str) -> Option<LinkOptions> {
         let d = LinkOptions::default();
         Some(match name {
