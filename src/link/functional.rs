@@ -122,20 +122,25 @@ fn normal_equations(
     let mut n = Matrix6::zeros();
     let mut g = Vector6::zeros();
     for (p, c) in parent.iter().zip(child) {
-        let rp: Matrix3<f64> = p.rotation.to_rotation_matrix().into_inner();
-        let rc: Matrix3<f64> = c.rotation.to_rotation_matrix().into_inner();
-        let cross = rp.transpose() * rc;
-        let d = c.translation.vector - p.translation.vector;
-        let mut block = Matrix6::identity();
-        block.fixed_view_mut::<3, 3>(0, 3).copy_from(&(-cross));
-        block
-            .fixed_view_mut::<3, 3>(3, 0)
-            .copy_from(&(-cross.transpose()));
-        n += block;
-        let (gp, gc) = (rp.transpose() * d, rc.transpose() * d);
-        g += Vector6::new(gp.x, gp.y, gp.z, -gc.x, -gc.y, -gc.z);
+        accumulate(p, c, &mut n, &mut g);
     }
     Ok((n, g))
+}
+
+/// Add one frame's terms `A^T A` and `A^T (t_c - t_p)`, `A = [R_p, -R_c]`, to `n` and `g`.
+fn accumulate(p: &Isometry3<f64>, c: &Isometry3<f64>, n: &mut Matrix6<f64>, g: &mut Vector6<f64>) {
+    let rp: Matrix3<f64> = p.rotation.to_rotation_matrix().into_inner();
+    let rc: Matrix3<f64> = c.rotation.to_rotation_matrix().into_inner();
+    let cross = rp.transpose() * rc;
+    let d = c.translation.vector - p.translation.vector;
+    let mut block = Matrix6::identity();
+    block.fixed_view_mut::<3, 3>(0, 3).copy_from(&(-cross));
+    block
+        .fixed_view_mut::<3, 3>(3, 0)
+        .copy_from(&(-cross.transpose()));
+    *n += block;
+    let (gp, gc) = (rp.transpose() * d, rc.transpose() * d);
+    *g += Vector6::new(gp.x, gp.y, gp.z, -gc.x, -gc.y, -gc.z);
 }
 
 /// Eigenpairs of a symmetric 6x6 matrix, eigenvalues descending.
@@ -174,18 +179,72 @@ fn pair_rms(parent: &[Isometry3<f64>], child: &[Isometry3<f64>], xp: &Point, xc:
 pub fn score_centre(parent: &[Isometry3<f64>], child: &[Isometry3<f64>]) -> Result<ScoreFit> {
     const WHAT: &str = "SCoRE centre";
     let (n, g) = normal_equations(WHAT, parent, child)?;
-    let (vals, vecs) = sorted_eigen6(&n);
-    if !determined(vals[5], vals[0]) {
-        return Err(Error::invalid(format!(
+    let (x, condition) = score_solve(&n, &g).ok_or_else(|| {
+        Error::invalid(format!(
             "{WHAT}: the relative motion does not determine a centre (no rotation, or rotation \
              about one axis only); move the joint in more directions, or use sara_axis for a hinge"
-        )));
+        ))
+    })?;
+    finish_score(parent, child, &x, condition)
+}
+
+/// SCoRE's least-squares solution `(c_p, c_c)` of its normal equations `n x = g` (as
+/// accumulated by [`block_normal_equations`], summed), and the system's condition (smallest
+/// over largest eigenvalue); `None` when the system is singular (see [`score_centre`]).
+pub fn score_solve(n: &Matrix6<f64>, g: &Vector6<f64>) -> Option<(Vector6<f64>, f64)> {
+    let (vals, vecs) = sorted_eigen6(n);
+    if !determined(vals[5], vals[0]) {
+        return None;
     }
     let mut x = Vector6::zeros();
     for (v, lambda) in vecs.column_iter().zip(vals) {
-        x += v * (v.dot(&g) / lambda);
+        x += v * (v.dot(g) / lambda);
     }
-    finish_score(parent, child, &x, vals[5] / vals[0])
+    Some((x, vals[5] / vals[0]))
+}
+
+/// SARA's solution of its normal equations `n x = g` (the one [`sara_axis`] takes): a point on the axis and the axis'
+/// unit direction, both in the parent's local coordinates (the direction's sign arbitrary);
+/// `None` when the five largest eigenvalues do not determine the point (see [`sara_axis`]).
+pub fn sara_solve(n: &Matrix6<f64>, g: &Vector6<f64>) -> Option<(Point, Vec3)> {
+    let (vals, vecs) = sorted_eigen6(n);
+    if !determined(vals[4], vals[0]) {
+        return None;
+    }
+    let mut x = Vector6::zeros();
+    for (v, lambda) in vecs.column_iter().zip(vals).take(5) {
+        x += v * (v.dot(g) / lambda);
+    }
+    let null = vecs.column(5);
+    let ap = Vec3::new(null[0], null[1], null[2]).try_normalize(1e-9)?;
+    Some((Point::new(x[0], x[1], x[2]), ap))
+}
+
+/// The normal equations of [`score_centre`] and [`sara_axis`] summed per block of frames:
+/// frame `t` adds to block `block_of[t]` (`n_blocks` blocks; a block may stay empty). A block
+/// bootstrap (Künsch 1989) then draws blocks with replacement and solves the sum of the drawn
+/// blocks' equations ([`score_solve`], [`sara_solve`]) at no further cost per frame. Errors as
+/// [`score_centre`]'s input checks, or a block index out of range.
+pub fn block_normal_equations(
+    parent: &[Isometry3<f64>],
+    child: &[Isometry3<f64>],
+    block_of: &[usize],
+    n_blocks: usize,
+) -> Result<Vec<(Matrix6<f64>, Vector6<f64>)>> {
+    normal_equations("block normal equations", parent, child)?;
+    if block_of.len() != parent.len() || block_of.iter().any(|&b| b >= n_blocks) {
+        return Err(Error::invalid(format!(
+            "block normal equations: {} block indices for {} frames, each below {n_blocks}",
+            block_of.len(),
+            parent.len()
+        )));
+    }
+    let mut out = vec![(Matrix6::zeros(), Vector6::zeros()); n_blocks];
+    for ((p, c), &b) in parent.iter().zip(child).zip(block_of) {
+        let (n, g) = &mut out[b];
+        accumulate(p, c, n, g);
+    }
+    Ok(out)
 }
 
 fn finish_score(
@@ -350,6 +409,47 @@ mod tests {
         assert!((fit.centre - parent[0] * c_p).norm() < 1e-9);
         assert!((fit.centre_at(&parent[7], &child[7]) - parent[7] * c_p).norm() < 1e-9);
         assert!(fit.rms < 1e-9 && fit.condition > 1e-3 && fit.n_frames == 150);
+    }
+
+    /// The blocks' normal equations sum to the whole sequence's: solved, they give SCoRE's
+    /// and SARA's own answers (a hinge's axis line: its direction and a point on it), and a
+    /// block drawn twice weighs its frames twice (the ball joint stays exact, being exact in
+    /// every frame).
+    #[test]
+    fn block_equations_sum_to_the_whole() {
+        let (parent, child, c_p, a_p) = hinge(5);
+        let block_of: Vec<usize> = (0..parent.len()).map(|t| t / 7).collect();
+        let n_blocks = parent.len().div_ceil(7);
+        let blocks = block_normal_equations(&parent, &child, &block_of, n_blocks).unwrap();
+        let (mut n, mut g) = (Matrix6::zeros(), Vector6::zeros());
+        for (bn, bg) in &blocks {
+            n += bn;
+            g += bg;
+        }
+        let (p, a) = sara_solve(&n, &g).unwrap();
+        let fit = sara_axis(&parent, &child).unwrap();
+        assert!(a.cross(&fit.axis_parent_local).norm() < 1e-9);
+        assert!(a.cross(&a_p).norm() < 1e-9);
+        let off = (p - c_p) - a_p * (p - c_p).dot(&a_p);
+        assert!(off.norm() < 1e-9, "{}", off.norm());
+
+        let mut rng = Rng::new(12);
+        let parent = parent_poses(&mut rng, 90);
+        let rel: Vec<_> = (0..90)
+            .map(|_| UnitQuaternion::from_scaled_axis(rng.gauss3(0.5)))
+            .collect();
+        let c = Point::new(3.0, -9.0, 25.0);
+        let child = child_poses(&parent, &rel, &c, &offset());
+        let block_of: Vec<usize> = (0..90).map(|t| t / 10).collect();
+        let blocks = block_normal_equations(&parent, &child, &block_of, 9).unwrap();
+        let (mut n, mut g) = (Matrix6::zeros(), Vector6::zeros());
+        for b in [0, 0, 3, 8, 8, 8, 5, 2, 1] {
+            n += blocks[b].0;
+            g += blocks[b].1;
+        }
+        let (x, _) = score_solve(&n, &g).unwrap();
+        assert!((Point::new(x[0], x[1], x[2]) - c).norm() < 1e-9);
+        assert!(block_normal_equations(&parent, &child, &block_of, 8).is_err());
     }
 
     fn hinge(seed: u64) -> (Vec<Isometry3<f64>>, Vec<Isometry3<f64>>, Point, Vec3) {

@@ -18,7 +18,7 @@
 //!    [`crate::skeleton`] conventions).
 
 use super::axis_fit::common_plane_normal;
-use super::functional::{sara_axis, score_centre};
+use super::functional::{block_normal_equations, sara_axis, sara_solve, score_centre, score_solve};
 use super::registration::{register_parent, ParentRegistration};
 use super::sphere_fit::{
     circle_centre_on_axis, common_sphere_centre, common_sphere_centre_bias_compensated,
@@ -98,6 +98,15 @@ impl StaDiagnostics {
     }
 }
 
+/// One level cue of a hinge in `link_model.json`.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct LevelCueOffset {
+    /// The cue's level minus the centre's, along the axis, mm.
+    pub offset_mm: f64,
+    /// Its weight in the centre's level.
+    pub weight: f64,
+}
+
 /// Diagnostics of one joint's estimate (the seed paper's Figures 8-9 and more).
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct JointDiagnostics {
@@ -142,6 +151,21 @@ pub struct JointDiagnostics {
     /// The soft-tissue artefact model's fit, when it could be made.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub sta: Option<StaDiagnostics>,
+    /// The centre's uncertainty: the RMS distance of its block-bootstrap replicates from their
+    /// mean (frames resampled in blocks of [`BOOTSTRAP_BLOCK_S`], [`LinkOptions::bootstrap`]
+    /// draws), with a 1-DOF centre's level along its axis drawn from that level's standard
+    /// error, mm.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub centre_sd_mm: Option<f64>,
+    /// 1-DOF: the standard error of the centre's level along its axis from the spread of the
+    /// level cues ([`LevelCue`]), mm.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub level_sd_mm: Option<f64>,
+    /// 1-DOF: the level cues ([`LevelCue`]; after the skin stage also `skin-section`), each
+    /// cue's offset from the centre along the axis and its weight in the centre's level
+    /// ([`cue_weights`]).
+    #[serde(skip_serializing_if = "BTreeMap::is_empty")]
+    pub level_cues: BTreeMap<String, LevelCueOffset>,
     /// Warnings about this joint.
     pub warnings: Vec<String>,
 }
@@ -168,14 +192,24 @@ pub struct LinkModel {
     pub joints: Vec<JointEstimate>,
     /// The skeleton (centres, frames, fingertips) in the global reference frame.
     pub skeleton: Skeleton,
-    /// Every warning, each naming the trial and the joint.
+    /// Every warning, each naming the trial and the joint or link.
     pub warnings: Vec<String>,
+    /// Per link (`I_MCP-I_PIP`: MCP-PIP, PIP-DIP; thumb CMC-MCP, MCP-IP), the bootstrap SD of
+    /// its length, mm (empty without a bootstrap, [`LinkOptions::bootstrap`]).
+    pub length_sd_mm: BTreeMap<String, f64>,
 }
 
 /// A joint's estimate in its trial's reference frame, before the global transform.
 struct LocalEstimate {
     centre: Point,
     axis: Option<Vec3>,
+    /// 1-DOF: the point whose level along the axis the centre takes.
+    near: Option<Point>,
+    /// 1-DOF: the level cues by name, in the trial's reference frame.
+    cues: Vec<(String, Point)>,
+    /// Block-bootstrap replicates of the centre ([`bootstrap_centres`]), one per draw of the
+    /// trial (`None` where a draw did not determine it).
+    replicates: Vec<Option<Point>>,
     alternatives: Vec<(String, Point)>,
     diagnostics: JointDiagnostics,
 }
@@ -389,14 +423,15 @@ fn mean(points: &[Point]) -> Option<Point> {
 }
 
 /// Estimate joint `j` from `traj` (whose key is `trial`) in that trial's reference frame.
-/// `level` is a point whose projection on a 1-DOF joint's axis fixes the centre along the axis,
-/// which no motion determines: the joint's dorsal landmark, in the trial's reference frame.
+/// `cues` are points whose mean projection on a 1-DOF joint's axis fixes the centre along the
+/// axis, which no motion determines (the level cues of [`LevelCue`], in the trial's reference
+/// frame; none: the level of the plates).
 #[allow(clippy::too_many_arguments)]
 fn estimate_local(
     traj: &Trajectories,
     trial: &str,
     j: Joint,
-    level: Option<Point>,
+    cues: &[Point],
     motion: &JointMotion,
     drivers: &[Option<Vec<f64>>],
     nb_cols: &[usize],
@@ -469,6 +504,8 @@ fn estimate_local(
     let rom;
 
     let mut sta_diag = None;
+    let mut level_sd = None;
+    let mut near_out = None;
     // Whether the soft-tissue model's centre may be picked (the rule of [`choose`]).
     let sta_eligible = |fit: &StaFit, warned: bool| -> bool {
         STA_BY_DEFAULT && !warned && fit.centre_sd_mm <= MAX_STA_CENTRE_SD_MM
@@ -561,15 +598,18 @@ fn estimate_local(
             })?;
         axis_estimator = Some(name.to_string());
         condition = cond;
-        // Along the axis: the level of the joint's dorsal landmark, which a lab puts over the
-        // middle of the joint; without it, the level of the plates (on the dorsal midline).
-        let near = level.unwrap_or_else(|| {
+        // Along the axis: the mean level of the cues (the joint's dorsal landmark, which a lab
+        // puts over the middle of the joint, and the plates, on the dorsal midline of their
+        // links; see `LevelCue`); the projection on the axis is linear, so the mean point's.
+        let near = mean(cues).unwrap_or_else(|| {
             mean(&[
                 mean(&motion.parent_reference).expect("non-empty"),
                 mean(reference).expect("non-empty"),
             ])
             .expect("non-empty")
         });
+        level_sd = Some(level_standard_error(cues, &a));
+        near_out = Some(near);
         // Signed flexion angle of each pose about the axis; range = max - min.
         let angles: Vec<f64> = poses
             .iter()
@@ -649,6 +689,9 @@ fn estimate_local(
     Ok(LocalEstimate {
         centre,
         axis,
+        near: near_out,
+        cues: Vec::new(),
+        replicates: Vec::new(),
         alternatives,
         diagnostics: JointDiagnostics {
             trial: trial.to_string(),
@@ -668,9 +711,155 @@ fn estimate_local(
             centre_shift_on_skin_mm: None,
             chain_shift_mm: None,
             sta: sta_diag,
+            centre_sd_mm: None,
+            level_sd_mm: level_sd,
+            level_cues: BTreeMap::new(),
             warnings: warnings.clone(),
         },
     })
+}
+
+/// The standard error of the mean level of `cues` along `axis`: their projections' sample SD
+/// over the square root of their number; with fewer than two cues, [`LANDMARK_SD_MM`] (one
+/// landmark placed by palpation) over the root of their number.
+fn level_standard_error(cues: &[Point], axis: &Vec3) -> f64 {
+    let n = cues.len();
+    if n < 2 {
+        return LANDMARK_SD_MM / (n.max(1) as f64).sqrt();
+    }
+    let t: Vec<f64> = cues.iter().map(|c| c.coords.dot(axis)).collect();
+    let m = t.iter().sum::<f64>() / n as f64;
+    let var = t.iter().map(|x| (x - m).powi(2)).sum::<f64>() / (n - 1) as f64;
+    (var / n as f64).sqrt()
+}
+
+/// Smallest error variance [`cue_weights`] gives a cue, mm²: (0.1 mm)², so that cues that
+/// agree exactly (error-free data) keep finite weights.
+const MIN_CUE_VARIANCE: f64 = 0.01;
+
+/// [`cue_weights`] keeps every cue's variance at least their mean over this.
+const MAX_CUE_WEIGHT_RATIO: f64 = 3.0;
+
+/// Weights of N level cues measuring the same quantities (every row of `offsets` one hinge,
+/// its N cues' levels, mm): each cue's error variance from the mean squares of the pairwise
+/// differences, `m_ij = s_i² + s_j²` for independent errors, solved by least squares over the
+/// pairs (exact for three cues: the "three-cornered hat" of Gray & Allan 1974, used to tell
+/// apart the instabilities of three clocks compared only with each other), each kept at least
+/// their mean over [`MAX_CUE_WEIGHT_RATIO`] and [`MIN_CUE_VARIANCE`]; the weights are the
+/// inverse variances normalised to 1. Returns the
+/// weights and the variances; `None` with fewer than two cues or three rows of N.
+pub fn cue_weights(offsets: &[Vec<f64>]) -> Option<(Vec<f64>, Vec<f64>)> {
+    let n = offsets.first()?.len();
+    let rows: Vec<&Vec<f64>> = offsets.iter().filter(|r| r.len() == n).collect();
+    if n < 2 || rows.len() < 3 {
+        return None;
+    }
+    let variances = if n == 2 {
+        // Only the sum is seen: equal shares.
+        let m = rows.iter().map(|r| (r[0] - r[1]).powi(2)).sum::<f64>() / rows.len() as f64;
+        vec![m / 2.0; 2]
+    } else {
+        let pairs: Vec<(usize, usize)> = (0..n)
+            .flat_map(|i| (i + 1..n).map(move |j| (i, j)))
+            .collect();
+        let mut a = nalgebra::DMatrix::<f64>::zeros(pairs.len(), n);
+        let mut b = nalgebra::DVector::<f64>::zeros(pairs.len());
+        for (k, &(i, j)) in pairs.iter().enumerate() {
+            a[(k, i)] = 1.0;
+            a[(k, j)] = 1.0;
+            b[k] = rows.iter().map(|r| (r[i] - r[j]).powi(2)).sum::<f64>() / rows.len() as f64;
+        }
+        a.svd(true, true)
+            .solve(&b, 1e-12)
+            .ok()?
+            .iter()
+            .copied()
+            .collect()
+    };
+    // With a hand's fourteen hinges each estimate is uncertain by about ±65 % (the mean squares
+    // of fourteen differences), and a negative or near-zero one would hand its cue all the
+    // weight: each is kept at least a third of their mean, so no cue outweighs another more
+    // than threefold.
+    let mean = variances.iter().sum::<f64>() / n as f64;
+    let floor = (mean / MAX_CUE_WEIGHT_RATIO).max(MIN_CUE_VARIANCE);
+    let variances: Vec<f64> = variances.iter().map(|v| v.max(floor)).collect();
+    let inv: Vec<f64> = variances.iter().map(|v| 1.0 / v).collect();
+    let total: f64 = inv.iter().sum();
+    Some((inv.iter().map(|w| w / total).collect(), variances))
+}
+
+/// Assumed SD of a landmark's placement along the skin off its anatomical point, mm: palpation
+/// by eye and touch is millimetre work (the spec: "expect a few mm" for the palm markers).
+/// Used only for the level's uncertainty when a single cue gives it.
+pub const LANDMARK_SD_MM: f64 = 1.0;
+
+/// Length of the blocks of frames the bootstrap resamples, seconds: longer than the
+/// correlation of marker noise and gaps, short enough for tens of blocks per trial.
+pub const BOOTSTRAP_BLOCK_S: f64 = 1.0;
+
+/// Block-bootstrap replicates of a joint's centre in its trial's reference frame (Künsch 1989):
+/// the trial's frames cut into blocks of `block` frames, every draw of `draws` (block indices,
+/// shared by the joints of a trial so that link lengths are drawn coherently) sums those
+/// blocks' SCoRE (3-DOF) or SARA (1-DOF) normal equations and solves them; a hinge's centre is
+/// then put level with `near` along the drawn axis, moved along it by `shift`. `None` for a
+/// draw that does not determine the centre.
+fn bootstrap_centres(
+    poses: &[Option<Isometry3<f64>>],
+    block: usize,
+    draws: &[Vec<usize>],
+    hinge: Option<(Point, f64)>,
+) -> Vec<Option<Point>> {
+    let n_blocks = poses.len().div_ceil(block.max(1));
+    let (child, block_of): (Vec<Isometry3<f64>>, Vec<usize>) = poses
+        .iter()
+        .enumerate()
+        .filter_map(|(f, p)| Some(((*p)?, f / block.max(1))))
+        .unzip();
+    let parent = vec![Isometry3::identity(); child.len()];
+    let Ok(blocks) = block_normal_equations(&parent, &child, &block_of, n_blocks) else {
+        return draws.iter().map(|_| None).collect();
+    };
+    draws
+        .iter()
+        .map(|draw| {
+            let (mut n, mut g) = (nalgebra::Matrix6::zeros(), nalgebra::Vector6::zeros());
+            for &b in draw {
+                n += blocks[b].0;
+                g += blocks[b].1;
+            }
+            match hinge {
+                None => score_solve(&n, &g).map(|(x, _)| Point::new(x[0], x[1], x[2])),
+                Some((near, shift)) => {
+                    sara_solve(&n, &g).map(|(p, a)| p + a * ((near - p).dot(&a) + shift))
+                }
+            }
+        })
+        .collect()
+}
+
+/// A link whose length's bootstrap SD exceeds this (mm) is named in a warning: the seed
+/// paper's repeatability of the index links was 0.52 and 0.92 mm SD.
+pub const MAX_LENGTH_SD_MM: f64 = 1.0;
+
+/// Sample SD; `None` with fewer than two values.
+fn sample_sd(v: &[f64]) -> Option<f64> {
+    if v.len() < 2 {
+        return None;
+    }
+    let m = v.iter().sum::<f64>() / v.len() as f64;
+    Some((v.iter().map(|x| (x - m).powi(2)).sum::<f64>() / (v.len() - 1) as f64).sqrt())
+}
+
+/// The RMS distance of the replicates (those that exist) from their mean; `None` with fewer
+/// than two.
+fn replicate_sd(points: &[Option<Point>]) -> Option<f64> {
+    let ps: Vec<Point> = points.iter().flatten().copied().collect();
+    if ps.len() < 2 {
+        return None;
+    }
+    let m = mean(&ps)?;
+    let ss: f64 = ps.iter().map(|p| (p - m).norm_squared()).sum();
+    Some((ss / (ps.len() - 1) as f64).sqrt())
 }
 
 /// How long after the reference frame the calibration protocol holds the reference posture,
@@ -759,8 +948,91 @@ fn to_global(traj: &Trajectories, rf: usize, reference_palm: &[Point]) -> Result
     })
 }
 
+/// Where a hinge's centre is placed along its axis, which no motion determines: the mean level
+/// of the chosen cues, each a point on the dorsal midline of the digit.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum LevelCue {
+    /// The joint's dorsal landmark of the static trial (the first link model).
+    Landmark,
+    /// The centroids of the parent's and the child's plates at the reference frame.
+    Plates,
+    /// The centroid of the parent's plate at the reference frame.
+    ParentPlate,
+    /// The centroid of the child's plate at the reference frame.
+    ChildPlate,
+    /// The landmark and the child's plate.
+    LandmarkAndChildPlate,
+    /// The landmark and both plates' centroids, equally weighted: three independent placements
+    /// on the digit's dorsal midline, so a landmark placed off its point (about a millimetre
+    /// along the skin) moves the level a third as much.
+    LandmarkAndPlates,
+}
+
+/// Choices of the link model's estimation. The default is the method the README's "Link
+/// model" documents; the others exist to measure what each part contributes
+/// (`examples/link_centres.rs`).
+#[derive(Clone, Debug, PartialEq)]
+pub struct LinkOptions {
+    /// Where a hinge's centre lies along its axis.
+    pub level: LevelCue,
+    /// Block-bootstrap draws for the centres' and link lengths' uncertainties (0: none).
+    pub bootstrap: usize,
+}
+
+impl Default for LinkOptions {
+    fn default() -> Self {
+        LinkOptions {
+            level: LevelCue::LandmarkAndPlates,
+            bootstrap: 50,
+        }
+    }
+}
+
+impl LinkOptions {
+    /// The option set called `name`: `default`; `first` (the first link model's method: the
+    /// landmark's level, no bootstrap); `landmark`, `plates`, `parent-plate`, `child-plate`,
+    /// `landmark-child` (the default with those level cues).
+    pub fn named(name: &str) -> Option<LinkOptions> {
+        let d = LinkOptions::default();
+        Some(match name {
+            "default" => d,
+            "first" => LinkOptions {
+                level: LevelCue::Landmark,
+                bootstrap: 0,
+            },
+            "landmark" => LinkOptions {
+                level: LevelCue::Landmark,
+                ..d
+            },
+            "plates" => LinkOptions {
+                level: LevelCue::Plates,
+                ..d
+            },
+            "parent-plate" => LinkOptions {
+                level: LevelCue::ParentPlate,
+                ..d
+            },
+            "child-plate" => LinkOptions {
+                level: LevelCue::ChildPlate,
+                ..d
+            },
+            "landmark-child" => LinkOptions {
+                level: LevelCue::LandmarkAndChildPlate,
+                ..d
+            },
+            _ => return None,
+        })
+    }
+}
+
 /// Reconstruct the link model of a subject from its trials.
 pub fn estimate_link_model(subject: &Subject) -> Result<LinkModel> {
+    estimate_link_model_with(subject, &LinkOptions::default())
+}
+
+/// [`estimate_link_model`] with the choices of `opts`.
+pub fn estimate_link_model_with(subject: &Subject, opts: &LinkOptions) -> Result<LinkModel> {
+    let _ = opts;
     let mut trials = BTreeMap::new();
     let mut warnings = Vec::new();
     for kind in TrialKind::ALL {
@@ -776,7 +1048,8 @@ pub fn estimate_link_model(subject: &Subject) -> Result<LinkModel> {
         }
         trials.insert(kind.key().to_string(), t);
     }
-    let mut model = estimate_link_model_from(subject.hand, subject.reference_frame, &trials)?;
+    let mut model =
+        estimate_link_model_from_with(subject.hand, subject.reference_frame, &trials, opts)?;
     warnings.append(&mut model.warnings);
     model.warnings = warnings;
     Ok(model)
@@ -788,6 +1061,20 @@ pub fn estimate_link_model_from(
     hand: Side,
     rf: usize,
     trials: &BTreeMap<String, Trajectories>,
+) -> Result<LinkModel> {
+    estimate_link_model_from_with(hand, rf, trials, &LinkOptions::default())
+}
+
+/// Seed of the bootstrap's draws (forked per trial and joint by name): the same trials give
+/// the same uncertainties.
+const BOOTSTRAP_SEED: u64 = 0x6c69_6e6b;
+
+/// [`estimate_link_model_from`] with the choices of `opts`.
+pub fn estimate_link_model_from_with(
+    hand: Side,
+    rf: usize,
+    trials: &BTreeMap<String, Trajectories>,
+    opts: &LinkOptions,
 ) -> Result<LinkModel> {
     let get = |kind: TrialKind| -> Result<&Trajectories> {
         trials
@@ -845,12 +1132,38 @@ pub fn estimate_link_model_from(
                 .collect::<Result<_>>()?;
             let angles: Vec<Vec<Option<Vec<f64>>>> =
                 motions.iter().map(|m| joint_angles(&m.poses)).collect();
+            // The bootstrap's draws of blocks, shared by the trial's joints.
+            let mut rng = crate::rng::Rng::new(BOOTSTRAP_SEED).fork(kind.key());
+            let block = ((BOOTSTRAP_BLOCK_S * traj.frame_rate).round() as usize).max(1);
+            let n_blocks = traj.n_frames().div_ceil(block);
+            let draws: Vec<Vec<usize>> = (0..opts.bootstrap)
+                .map(|_| (0..n_blocks).map(|_| rng.below(n_blocks)).collect())
+                .collect();
             for (&j, motion) in joints.iter().zip(&motions) {
-                let level = if j.dof() == 1 {
-                    Some(g.inverse().apply(&landmark(j.name())?))
+                let cues: Vec<(String, Point)> = if j.dof() == 1 {
+                    let lm = g.inverse().apply(&landmark(j.name())?);
+                    let plates = [
+                        mean(&motion.parent_reference).expect("a plate has markers"),
+                        mean(&motion.reference).expect("a plate has markers"),
+                    ];
+                    let (names, points): (Vec<&str>, Vec<Point>) = match opts.level {
+                        LevelCue::Landmark => (vec!["landmark"], vec![lm]),
+                        LevelCue::Plates => (vec!["parent-plate", "child-plate"], plates.to_vec()),
+                        LevelCue::ParentPlate => (vec!["parent-plate"], vec![plates[0]]),
+                        LevelCue::ChildPlate => (vec!["child-plate"], vec![plates[1]]),
+                        LevelCue::LandmarkAndChildPlate => {
+                            (vec!["landmark", "child-plate"], vec![lm, plates[1]])
+                        }
+                        LevelCue::LandmarkAndPlates => (
+                            vec!["landmark", "parent-plate", "child-plate"],
+                            vec![lm, plates[0], plates[1]],
+                        ),
+                    };
+                    names.iter().map(|n| n.to_string()).zip(points).collect()
                 } else {
-                    None
+                    Vec::new()
                 };
+                let cue_points: Vec<Point> = cues.iter().map(|c| c.1).collect();
                 // The soft-tissue model's drivers: the angles of the joints at both ends of
                 // j's two segments, per frame (`None` where one of them is unknown).
                 let ks: Vec<usize> = driver_joints(j, joints)
@@ -901,17 +1214,21 @@ pub fn estimate_link_model_from(
                     before..before + w
                 };
                 let nb_cols = separable_drivers(&drivers, own_cols);
-                let est = estimate_local(
+                let mut est = estimate_local(
                     traj,
                     kind.key(),
                     j,
-                    level,
+                    &cue_points,
                     motion,
                     &drivers,
                     &nb_cols,
                     &col_terms,
                     names,
                 )?;
+                // The level's own uncertainty is added once the cues' weights are known.
+                est.replicates =
+                    bootstrap_centres(&motion.poses, block, &draws, est.near.map(|n| (n, 0.0)));
+                est.cues = cues;
                 // The child plate's reference positions, for the dorsal direction of the frames.
                 let (_, child) = marker_sets(j);
                 let plate: Vec<Point> = child
@@ -932,6 +1249,66 @@ pub fn estimate_link_model_from(
         }
     }
 
+    // The hinges' levels: the cues weighted by their error variances, estimated over all hinges
+    // of the subject (`cue_weights`); the bootstrap replicates follow the centre and get the
+    // level's own uncertainty.
+    let offsets: Vec<Vec<f64>> = locals
+        .iter()
+        .flatten()
+        .filter_map(|(est, ..)| {
+            let a = est.axis?;
+            Some(
+                est.cues
+                    .iter()
+                    .map(|(_, p)| (p - est.centre).dot(&a))
+                    .collect(),
+            )
+        })
+        .collect();
+    if let Some((weights, variances)) = cue_weights(&offsets) {
+        let level_sd = weights
+            .iter()
+            .zip(&variances)
+            .map(|(w, v)| w * w * v)
+            .sum::<f64>()
+            .sqrt();
+        for (j, (est, ..)) in Joint::ALL
+            .iter()
+            .zip(locals.iter_mut())
+            .filter_map(|(j, l)| Some((j, l.as_mut()?)))
+        {
+            let Some(a) = est.axis else { continue };
+            let t: Vec<f64> = est
+                .cues
+                .iter()
+                .map(|(_, p)| (p - est.centre).dot(&a))
+                .collect();
+            if t.len() != weights.len() {
+                continue;
+            }
+            let shift: f64 = t.iter().zip(&weights).map(|(t, w)| t * w).sum();
+            est.centre += a * shift;
+            let mut rng = crate::rng::Rng::new(BOOTSTRAP_SEED).fork(j.name());
+            for r in est.replicates.iter_mut().flatten() {
+                *r += a * (shift + rng.gauss(0.0, level_sd));
+            }
+            est.diagnostics.level_sd_mm = Some(level_sd);
+            est.diagnostics.level_cues = est
+                .cues
+                .iter()
+                .zip(t.iter().zip(&weights))
+                .map(|((name, _), (t, w))| {
+                    (
+                        name.clone(),
+                        LevelCueOffset {
+                            offset_mm: t - shift,
+                            weight: *w,
+                        },
+                    )
+                })
+                .collect();
+        }
+    }
     let chains = chain_held_poses(
         &locals
             .iter()
@@ -941,18 +1318,33 @@ pub fn estimate_link_model_from(
     let mut joints = Vec::with_capacity(Joint::ALL.len());
     let mut warnings = Vec::new();
     let mut plates = Vec::new();
+    let mut all_replicates: Vec<Vec<Option<Point>>> = Vec::new();
     for ((j, l), chain) in Joint::ALL.iter().zip(locals).zip(chains) {
         let (mut est, g, plate, _) = l.expect("every joint belongs to a trial");
-        if j.parent().is_some_and(|p| p != Joint::Wrist) {
-            let mut shift = chain * est.centre - est.centre;
+        let chained = j.parent().is_some_and(|p| p != Joint::Wrist);
+        // Into the global frame: through the held poses to the palm (a hinge's centre staying
+        // level with its cues along the axis), then the trial's transform.
+        let axis = est.axis;
+        let carry = |c: Point| -> Point {
+            let mut shift = Vec3::zeros();
+            if chained {
+                shift = chain * c - c;
+                if let Some(a) = axis {
+                    shift -= a * a.dot(&shift);
+                }
+            }
+            g.apply(&(c + shift))
+        };
+        let replicates: Vec<Option<Point>> = est.replicates.iter().map(|r| r.map(&carry)).collect();
+        let global = carry(est.centre);
+        if chained {
+            est.diagnostics.chain_shift_mm = Some((global - g.apply(&est.centre)).norm());
             if let Some(a) = est.axis {
-                // A hinge's centre stays level with its landmark along the axis.
-                shift -= a * a.dot(&shift);
                 est.axis = Some((chain.rotation * a).normalize());
             }
-            est.centre += shift;
-            est.diagnostics.chain_shift_mm = Some(shift.norm());
         }
+        est.diagnostics.centre_sd_mm = replicate_sd(&replicates);
+        all_replicates.push(replicates);
         let mut d = est.diagnostics;
         d.alternatives = est
             .alternatives
@@ -965,11 +1357,38 @@ pub fn estimate_link_model_from(
         warnings.extend(d.warnings.iter().cloned());
         joints.push(JointEstimate {
             joint: *j,
-            centre: g.apply(&est.centre),
+            centre: global,
             axis: est.axis.map(|a| g.apply_vector(&a).normalize()),
             diagnostics: d,
         });
         plates.push(plate);
+    }
+
+    // The link lengths' uncertainties: per digit, the lengths between consecutive joints'
+    // replicates of the same draw.
+    let mut length_sd_mm = BTreeMap::new();
+    for f in Finger::ALL {
+        let js = f.joints();
+        for k in 0..2 {
+            let (a, b) = (js[k], js[k + 1]);
+            let lengths: Vec<f64> = all_replicates[a.index()]
+                .iter()
+                .zip(&all_replicates[b.index()])
+                .filter_map(|(p, q)| Some((p.as_ref()? - q.as_ref()?).norm()))
+                .collect();
+            let Some(sd) = sample_sd(&lengths) else {
+                continue;
+            };
+            let name = format!("{}-{}", a.name(), b.name());
+            if sd > MAX_LENGTH_SD_MM {
+                warnings.push(format!(
+                    "{} trial: link {name}: length uncertainty {sd:.2} mm (bootstrap SD) exceeds \
+                     {MAX_LENGTH_SD_MM} mm; repeat the calibration motion",
+                    joints[b.index()].diagnostics.trial
+                ));
+            }
+            length_sd_mm.insert(name, sd);
+        }
     }
 
     // Fingertips: the nail landmarks stand in for the ends of the distal links.
@@ -990,6 +1409,7 @@ pub fn estimate_link_model_from(
         joints,
         skeleton,
         warnings,
+        length_sd_mm,
     })
 }
 
@@ -1052,14 +1472,26 @@ fn build_skeleton(
     Ok(sk)
 }
 
-/// The `link_model.json` document (spec section 3).
+/// The `link_model.json` document (spec section 3; `hand`, `warnings` and `link_lengths` are
+/// extensions, optional for readers).
 #[derive(Serialize)]
 struct LinkModelFile<'a> {
     units: &'a str,
     frame: &'a str,
     hand: Side,
     joints: BTreeMap<String, JointRecord>,
+    link_lengths: BTreeMap<String, LinkLength>,
     warnings: &'a [String],
+}
+
+/// A link's length between its joints' centres and its bootstrap SD, in `link_model.json`.
+#[derive(Clone, Debug, PartialEq, Serialize, serde::Deserialize)]
+pub struct LinkLength {
+    /// Distance between the centres, mm.
+    pub length_mm: f64,
+    /// Bootstrap SD of that distance, mm.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub sd_mm: Option<f64>,
 }
 
 impl LinkModel {
@@ -1071,36 +1503,113 @@ impl LinkModel {
                 r.diagnostics = Some(serde_json::to_value(&e.diagnostics).expect("serialisable"));
             }
         }
+        let mut link_lengths = BTreeMap::new();
+        for f in Finger::ALL {
+            let js = f.joints();
+            for k in 0..2 {
+                let (a, b) = (js[k], js[k + 1]);
+                let name = format!("{}-{}", a.name(), b.name());
+                let length_mm = (self.skeleton.centre(a) - self.skeleton.centre(b)).norm();
+                let sd_mm = self.length_sd_mm.get(&name).copied();
+                link_lengths.insert(name, LinkLength { length_mm, sd_mm });
+            }
+        }
         serde_json::to_string_pretty(&LinkModelFile {
             units: "mm",
             frame: "reference",
             hand: self.side,
             joints,
+            link_lengths,
             warnings: &self.warnings,
         })
         .expect("serialisable")
     }
 
-    /// Section 3.6 of the seed paper applied: every 1-DOF centre replaced by the one of
-    /// `skeleton` (from [`crate::skin::section_centre::centre_on_cross_section`]) with its
-    /// shift recorded in the diagnostics; the centre from motion alone is kept among the
-    /// alternatives as `motion`.
+    /// Section 3.6 of the seed paper applied, as one more level cue: every 1-DOF centre that
+    /// `skeleton` (from [`crate::skin::section_centre::centre_on_cross_section`]) moved along
+    /// its axis onto the skin's cross-section takes the weighted mean level of the motion's cues
+    /// ([`LevelCue`]) and that cross-section (`skin-section`), the weights from all those
+    /// hinges by [`cue_weights`]: the landmark, the plates and the fitted skin are each off the
+    /// joint's mid-level by about a millimetre for independent reasons (palpation, plate
+    /// placement, the skin fit), so their weighted mean is closer than any of them (README,
+    /// "Link model"). The skin stage's shift is recorded in the diagnostics
+    /// (`centre_shift_on_skin_mm`) and the centre from motion alone kept among the alternatives
+    /// as `motion`. The skeleton becomes `skeleton` with these centres.
     pub fn with_skin_centres(
         mut self,
         skeleton: &Skeleton,
         shifts: &BTreeMap<String, f64>,
     ) -> Self {
-        for e in &mut self.joints {
-            if let Some(&t) = shifts.get(e.joint.name()) {
-                let c = e.centre;
-                e.diagnostics
-                    .alternatives
-                    .insert("motion".into(), [c.x, c.y, c.z]);
-                e.diagnostics.centre_shift_on_skin_mm = Some(t);
-                e.centre = skeleton.centre(e.joint);
+        let mut skeleton = skeleton.clone();
+        let moved: Vec<usize> = (0..self.joints.len())
+            .filter(|&k| {
+                let e = &self.joints[k];
+                e.axis.is_some() && shifts.contains_key(e.joint.name())
+            })
+            .collect();
+        // Per moved hinge: its cues' offsets from the centre along the axis, the section's last.
+        let offsets: Vec<Vec<f64>> = moved
+            .iter()
+            .map(|&k| {
+                let e = &self.joints[k];
+                let a = e.axis.expect("a hinge");
+                let mut t: Vec<f64> = e
+                    .diagnostics
+                    .level_cues
+                    .values()
+                    .map(|c| c.offset_mm)
+                    .collect();
+                t.push((skeleton.centre(e.joint) - e.centre).dot(&a));
+                t
+            })
+            .collect();
+        let weights = cue_weights(&offsets);
+        for (&k, t) in moved.iter().zip(&offsets) {
+            let e = &mut self.joints[k];
+            let a = e.axis.expect("a hinge");
+            let c = e.centre;
+            e.diagnostics
+                .alternatives
+                .insert("motion".into(), [c.x, c.y, c.z]);
+            e.diagnostics.centre_shift_on_skin_mm = Some(shifts[e.joint.name()]);
+            // Without weights (too few hinges), the section alone, as the seed paper.
+            let (w, var) = match &weights {
+                Some((w, v)) if w.len() == t.len() => (w.clone(), v.clone()),
+                _ => {
+                    let mut w = vec![0.0; t.len()];
+                    w[t.len() - 1] = 1.0;
+                    (w, Vec::new())
+                }
+            };
+            let shift: f64 = t.iter().zip(&w).map(|(t, w)| t * w).sum();
+            e.centre = c + a * shift;
+            skeleton.joints[e.joint.index()].centre = e.centre;
+            let names: Vec<String> = e
+                .diagnostics
+                .level_cues
+                .keys()
+                .cloned()
+                .chain(std::iter::once("skin-section".to_string()))
+                .collect();
+            e.diagnostics.level_cues = names
+                .into_iter()
+                .zip(t.iter().zip(&w))
+                .map(|(name, (t, w))| {
+                    (
+                        name,
+                        LevelCueOffset {
+                            offset_mm: t - shift,
+                            weight: *w,
+                        },
+                    )
+                })
+                .collect();
+            if !var.is_empty() {
+                let sd = w.iter().zip(&var).map(|(w, v)| w * w * v).sum::<f64>();
+                e.diagnostics.level_sd_mm = Some(sd.sqrt());
             }
         }
-        self.skeleton = skeleton.clone();
+        self.skeleton = skeleton;
         self
     }
 
@@ -1267,6 +1776,38 @@ mod tests {
             assert!(sd <= 0.3, "link {k}: SD {sd} mm");
             assert!((m - truth).abs() < 2.5, "link {k}: {m} vs {truth}");
         }
+    }
+
+    /// The three-cornered hat: from many hinges' cues with independent errors of known SDs,
+    /// each cue's variance comes back within 10 % and the weights are the normalised inverse
+    /// variances; a cue far better than the others is held to three times the weight of the
+    /// mean variance's cue, and too few hinges give none.
+    #[test]
+    fn cue_weights_recover_independent_variances() {
+        let mut rng = crate::rng::Rng::new(8);
+        let rows = |rng: &mut crate::rng::Rng, sd: [f64; 3]| -> Vec<Vec<f64>> {
+            (0..20_000)
+                .map(|_| {
+                    let level = rng.gauss(0.0, 5.0);
+                    sd.iter().map(|s| level + rng.gauss(0.0, *s)).collect()
+                })
+                .collect()
+        };
+        let (w, v) = cue_weights(&rows(&mut rng, [0.8, 1.0, 1.2])).unwrap();
+        for (got, want) in v.iter().zip([0.64, 1.0, 1.44]) {
+            assert!((got / want - 1.0).abs() < 0.1, "{v:?}");
+        }
+        assert!((w.iter().sum::<f64>() - 1.0).abs() < 1e-12);
+        assert!((w[0] * v[0] - w[2] * v[2]).abs() < 1e-12 && w[0] > w[1] && w[1] > w[2]);
+        let (w, v) = cue_weights(&rows(&mut rng, [0.1, 1.0, 1.0])).unwrap();
+        let mean = (0.01 + 1.0 + 1.0) / 3.0;
+        assert!(
+            (v[0] / (mean / MAX_CUE_WEIGHT_RATIO) - 1.0).abs() < 0.1,
+            "{v:?}"
+        );
+        // 1 / (mean / 3) against 1 and 1: 4.48 / 6.48.
+        assert!((w[0] - 0.691).abs() < 0.03, "{w:?}");
+        assert!(cue_weights(&[vec![0.0, 1.0, 2.0], vec![1.0, 0.0, 0.5]]).is_none());
     }
 
     /// The chain composes the held poses of the joints between a joint and the palm, parent

@@ -61,6 +61,9 @@ pub struct JointFit {
     /// Whether the centre used is the one from motion alone (1-DOF joints after section 3.6,
     /// whose final centre was slid along the axis onto the skin's cross-section).
     pub centre_from_motion: bool,
+    /// The centre's uncertainty from the link model's diagnostics (`centre_sd_mm`, a bootstrap
+    /// SD), mm; `None` when not recorded (older files).
+    pub centre_sd_mm: Option<f64>,
     /// The child markers.
     pub markers: Vec<MarkerTrack>,
 }
@@ -220,6 +223,9 @@ fn joint_fit(
             .and_then(|v| v.as_f64())
             .unwrap_or(f64::NAN),
         centre_from_motion: motion.is_some(),
+        centre_sd_mm: diag
+            .and_then(|d| d.get("centre_sd_mm"))
+            .and_then(|v| v.as_f64()),
         markers,
     })
 }

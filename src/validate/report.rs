@@ -251,6 +251,15 @@ pub fn validate_subject(
         references,
         link,
         link_lengths_mm: link_lengths(&joints),
+        link_length_sd_mm: model_json
+            .get("link_lengths")
+            .and_then(|l| l.as_object())
+            .map(|l| {
+                l.iter()
+                    .filter_map(|(k, v)| Some((k.clone(), v.get("sd_mm")?.as_f64()?)))
+                    .collect()
+            })
+            .unwrap_or_default(),
         surface: map.as_ref().map(|m| m.skin_to_reference_stats.clone()),
         surface_regions: regions,
         surface_reverse: map.as_ref().map(|m| m.reference_to_skin_stats.clone()),

@@ -325,9 +325,10 @@ pub fn joint_table(v: &SubjectValidation) -> Option<Table> {
             "trial",
             "range of motion (°)",
             "centre error (mm)",
+            "centre SD (mm)",
             "axis error (°)",
         ],
-        &[false, true, false, false, true, true, true],
+        &[false, true, false, false, true, true, true, true],
     );
     for e in &link.joints {
         let fit = v.joint_fits.iter().find(|f| f.joint == e.joint);
@@ -341,6 +342,11 @@ pub fn joint_table(v: &SubjectValidation) -> Option<Table> {
                     .unwrap_or_default(),
             ),
             Cell::flagged(f2(e.centre_mm), e.centre_mm > FLAG_CENTRE_MM),
+            Cell::new(
+                fit.and_then(|f| f.centre_sd_mm)
+                    .map(f2)
+                    .unwrap_or_else(|| "–".into()),
+            ),
             Cell::flagged(
                 e.axis_deg.map(f2).unwrap_or_else(|| "–".into()),
                 e.axis_deg.is_some_and(|a| a > FLAG_AXIS_DEG),
@@ -355,6 +361,7 @@ pub fn joint_table(v: &SubjectValidation) -> Option<Table> {
         Cell::new(""),
         Cell::new(""),
         Cell::new(format!("3-DOF {c3:.2}, 1-DOF {c1:.2}")),
+        Cell::new(""),
         Cell::new(f2(ax)),
     ]);
     t.summary_rows = 1;
@@ -444,8 +451,8 @@ pub fn link_length_table(v: &SubjectValidation) -> Table {
         return model_link_length_table(v);
     };
     let mut t = Table::new(
-        &["link", "estimated", "true", "difference (mm)"],
-        &[false, true, true, true],
+        &["link", "estimated", "true", "difference", "SD (mm)"],
+        &[false, true, true, true, true],
     );
     // Digit order (thumb to little), proximal first, as the joints are numbered.
     let mut links: Vec<(&String, &(f64, f64))> = link.link_lengths.iter().collect();
@@ -456,13 +463,23 @@ pub fn link_length_table(v: &SubjectValidation) -> Table {
             Cell::new(f2(*m)),
             Cell::new(f2(*tr)),
             Cell::flagged(signed(m - tr, 2), (m - tr).abs() > FLAG_CENTRE_MM),
+            length_sd_cell(v, k),
         ]);
     }
     t.note = LINK_LENGTH_NOTE.into();
     t
 }
 
-const LINK_LENGTH_NOTE: &str = "Repeatability (mean and SD over repeated sessions of one hand) needs repeats: ergohand validate --suite reports it for the suite's repeated subjects. The seed paper: index MCP–PIP 45.54 ± 0.52 mm, PIP–DIP 24.60 ± 0.92 mm over five recordings of the calibration motions (trial repeats: reports/link-repeatability.md).";
+/// A link length's bootstrap SD, flagged above the link model's warning level
+/// ([`crate::link::model::MAX_LENGTH_SD_MM`]); a dash when the model has none.
+fn length_sd_cell(v: &SubjectValidation, key: &str) -> Cell {
+    match v.link_length_sd_mm.get(key) {
+        Some(&sd) => Cell::flagged(f2(sd), sd > crate::link::model::MAX_LENGTH_SD_MM),
+        None => Cell::new("–"),
+    }
+}
+
+const LINK_LENGTH_NOTE: &str = "SD: the spread of the link length over block-bootstrap resamplings of the calibration trial's frames (link_model.json, link_lengths); it covers the noise of the motion, not a bias such as a plate sliding with its own joint. Repeatability (mean and SD over repeated sessions of one hand) needs repeats: ergohand validate --suite reports it for the suite's repeated subjects. The seed paper: index MCP–PIP 45.54 ± 0.52 mm, PIP–DIP 24.60 ± 0.92 mm over five recordings of the calibration motions (trial repeats: reports/link-repeatability.md).";
 
 /// Digit order (thumb to little), proximal first, as the joints are numbered, of a link
 /// length's key (`I_MCP-I_PIP`).
@@ -475,12 +492,15 @@ fn digit_order(key: &str) -> usize {
 
 /// [`link_length_table`] of a subject without truth: the model's own lengths.
 fn model_link_length_table(v: &SubjectValidation) -> Table {
-    let mut t = Table::new(&["link", "estimated (mm)"], &[false, true]);
+    let mut t = Table::new(&["link", "estimated", "SD (mm)"], &[false, true, true]);
     let mut links: Vec<(&String, &f64)> = v.link_lengths_mm.iter().collect();
     links.sort_by_key(|(k, _)| digit_order(k));
     for (k, m) in links {
-        t.rows
-            .push(vec![Cell::new(k.replace('-', " – ")), Cell::new(f2(*m))]);
+        t.rows.push(vec![
+            Cell::new(k.replace('-', " – ")),
+            Cell::new(f2(*m)),
+            length_sd_cell(v, k),
+        ]);
     }
     t.note = LINK_LENGTH_NOTE.into();
     t
@@ -558,6 +578,7 @@ mod tests {
             },
             link: None,
             link_lengths_mm: BTreeMap::from([("I_MCP-I_PIP".to_string(), 45.0)]),
+            link_length_sd_mm: BTreeMap::new(),
             surface: None,
             surface_regions: None,
             surface_reverse: None,
@@ -624,7 +645,9 @@ mod tests {
         assert!(joint_table(&validation(true, false)).is_none());
         assert!(surface_table(&validation(false, false)).is_none());
         let links = link_length_table(&validation(false, false));
-        assert_eq!(links.head.len(), 2);
+        // The model's own lengths and their bootstrap SD (a dash: none recorded).
+        assert_eq!(links.head.len(), 3);
         assert_eq!(links.rows[0][1].text, "45.00");
+        assert_eq!(links.rows[0][2].text, "–");
     }
 }

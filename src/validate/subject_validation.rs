@@ -41,6 +41,8 @@ pub struct JointFitSummary {
     pub estimator: String,
     /// Range of motion, degrees.
     pub range_of_motion_deg: f64,
+    /// The centre's bootstrap SD from `link_model.json`, mm (`null` when not recorded).
+    pub centre_sd_mm: Option<f64>,
     /// Every child marker.
     pub markers: Vec<MarkerRadius>,
 }
@@ -54,6 +56,7 @@ impl JointFitSummary {
             trial: f.trial.clone(),
             estimator: f.estimator.clone(),
             range_of_motion_deg: f.range_of_motion_deg,
+            centre_sd_mm: f.centre_sd_mm,
             markers: f
                 .markers
                 .iter()
@@ -93,6 +96,9 @@ pub struct SubjectValidation {
     pub link: Option<LinkAccuracy>,
     /// The model's own link lengths (`link_model.json`), mm: known for every subject.
     pub link_lengths_mm: BTreeMap<String, f64>,
+    /// The link lengths' bootstrap SDs from `link_model.json` (`link_lengths.*.sd_mm`), mm;
+    /// empty for a file without them.
+    pub link_length_sd_mm: BTreeMap<String, f64>,
     /// `skin.obj`'s vertices to `reference.ply`'s surface (`None`: no reference).
     pub surface: Option<SurfaceError>,
     /// `surface` per anatomical region of the skin, and over the hand distal of the wrist
