@@ -212,6 +212,23 @@ struct LocalEstimate {
     replicates: Vec<Option<Point>>,
     alternatives: Vec<(String, Point)>,
     diagnostics: JointDiagnostics,
+    /// The child markers' tracks in the parent's frame, kept to measure their radii again
+    /// about the centre the hinge's level moves.
+    tracks: Vec<Vec<Point>>,
+}
+
+/// Mean and SD of each track's distance to `centre` (the seed paper's Figure 9).
+fn marker_radii(tracks: &[Vec<Point>], centre: &Point) -> (Vec<f64>, Vec<f64>) {
+    tracks
+        .iter()
+        .map(|t| {
+            let d: Vec<f64> = t.iter().map(|p| (p - centre).norm()).collect();
+            let n = d.len().max(1) as f64;
+            let m = d.iter().sum::<f64>() / n;
+            let sd = (d.iter().map(|x| (x - m).powi(2)).sum::<f64>() / n).sqrt();
+            (m, sd)
+        })
+        .unzip()
 }
 
 /// The parent and child marker sets of a joint.
@@ -676,16 +693,7 @@ fn estimate_local(
     if !condition.is_finite() {
         condition = 0.0;
     }
-    let (rmean, rsd): (Vec<f64>, Vec<f64>) = tracks
-        .iter()
-        .map(|t| {
-            let d: Vec<f64> = t.iter().map(|p| (p - centre).norm()).collect();
-            let n = d.len().max(1) as f64;
-            let m = d.iter().sum::<f64>() / n;
-            let sd = (d.iter().map(|x| (x - m).powi(2)).sum::<f64>() / n).sqrt();
-            (m, sd)
-        })
-        .unzip();
+    let (rmean, rsd) = marker_radii(&tracks, &centre);
     Ok(LocalEstimate {
         centre,
         axis,
@@ -716,6 +724,7 @@ fn estimate_local(
             level_cues: BTreeMap::new(),
             warnings: warnings.clone(),
         },
+        tracks,
     })
 }
 
@@ -1288,6 +1297,10 @@ pub fn estimate_link_model_from_with(
             }
             let shift: f64 = t.iter().zip(&weights).map(|(t, w)| t * w).sum();
             est.centre += a * shift;
+            (
+                est.diagnostics.marker_radius_mean,
+                est.diagnostics.marker_radius_sd,
+            ) = marker_radii(&est.tracks, &est.centre);
             let mut rng = crate::rng::Rng::new(BOOTSTRAP_SEED).fork(j.name());
             for r in est.replicates.iter_mut().flatten() {
                 *r += a * (shift + rng.gauss(0.0, level_sd));

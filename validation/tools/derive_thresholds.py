@@ -31,6 +31,10 @@ def table(header, fig):
             f, o = RULES[k]
             lim = math.ceil((f * fig[k] + o) * 100 - 1e-9) / 100
             lines.append(f"{k} = {lim:.2f}  # measured {fig[k]:.4f}")
+        elif fig[k] > 0:
+            # Inverted elements should be none; where a subject has some, the limit holds
+            # them at today's count so that more fail, and the README names the problem.
+            lines.append(f"{k} = {int(fig[k])}  # measured {int(fig[k])}: the goal is 0")
         else:
             lines.append(f"{k} = 0")
     return "\n".join(lines) + "\n"
@@ -39,8 +43,17 @@ def table(header, fig):
 def replace(text, header, body):
     pat = re.compile(r"^" + re.escape(header) + r"\n(?:[^\[\n].*\n)*", re.M)
     if not pat.search(text):
-        print(f"no table {header} in the file; left", file=sys.stderr)
-        return text
+        # A new subject: its table goes after the last one of its kind ([subject.*] before
+        # [ci], [ci.subject.*] at the end).
+        kind = header.split(".")[0] + "."
+        last = None
+        for m in re.finditer(r"^" + re.escape(kind) + r"[^\]]+\]\n(?:[^\[\n].*\n)*", text, re.M):
+            last = m
+        print(f"new table {header}", file=sys.stderr)
+        if last is None:
+            return text.rstrip("\n") + "\n\n" + body
+        at = last.end()
+        return text[:at] + "\n" + body + text[at:]
     return pat.sub(lambda m: body, text, count=1)
 
 
