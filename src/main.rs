@@ -88,6 +88,24 @@ enum Command {
         /// the pairs for the given values, as the paper does.
         #[arg(long, default_value_t = ergohand::skin::pipeline::CALIPER_ROUNDS)]
         caliper_rounds: usize,
+        /// Shape prior of the skin fit for what no landmark or caliper reaches: `builtin` (the
+        /// one shipped with the generic template), a file written by `ergohand shape-prior`,
+        /// or `none` (the default: the template's shape, as the paper).
+        #[arg(long, value_name = "builtin|FILE|none")]
+        shape_prior: Option<PathBuf>,
+    },
+    /// Train a skin shape prior from subjects whose true surface is known: each SUBJECT_DIR
+    /// holds subject.toml, reference.ply (a CT or simulated reference) and MODEL/ made by
+    /// `reconstruct --shape-prior none`. Prints the leave-one-out figures.
+    ShapePrior {
+        #[arg(required = true)]
+        subject_dirs: Vec<PathBuf>,
+        /// The reconstruction folder inside each subject folder.
+        #[arg(long, default_value = "out")]
+        model: String,
+        /// The prior's JSON file.
+        #[arg(long)]
+        out: PathBuf,
     },
     /// Compare a reconstruction with reference.ply / truth.json (each optional) and the
     /// caliper dimensions, and write a report.
@@ -177,13 +195,22 @@ fn main() -> ExitCode {
             no_template_posing,
             centre_weight,
             caliper_rounds,
+            shape_prior,
         } => cli::skin_options(fit_resolution, !no_template_posing, centre_weight)
-            .map(|o| ergohand::skin::pipeline::SkinOptions {
-                caliper_rounds,
-                ..o
+            .and_then(|o| {
+                Ok(ergohand::skin::pipeline::SkinOptions {
+                    caliper_rounds,
+                    shape_prior: cli::reconstruct::shape_prior_option(shape_prior.as_deref())?,
+                    ..o
+                })
             })
             .and_then(|opts| cli::reconstruct_with(&subject_dir, &out, &opts))
             .map(|_| ()),
+        Command::ShapePrior {
+            subject_dirs,
+            model,
+            out,
+        } => cli::shape_prior(&subject_dirs, &model, &out).map(|_| ()),
         Command::Validate {
             subject_dir,
             report,

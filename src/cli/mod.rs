@@ -14,6 +14,7 @@ pub mod grasp;
 pub mod logger;
 pub mod pose;
 pub mod reconstruct;
+pub mod shape_prior;
 pub mod synth;
 pub mod template;
 pub mod validate;
@@ -25,6 +26,7 @@ pub use pose::{pose, pose_with, PoseOptions, PoseSummary};
 pub use reconstruct::{
     reconstruct, reconstruct_fingerprint, reconstruct_prepared, reconstruct_with, skin_options,
 };
+pub use shape_prior::shape_prior;
 pub use synth::{synth, synth_options};
 pub use template::{template, TemplateOutputs};
 pub use validate::{validate, validate_suite, Validation};

@@ -45,6 +45,8 @@ struct SkinSummary {
     fit_resolution: crate::skin::pipeline::FitResolution,
     template_posed: bool,
     centre_weight: f64,
+    /// The shape prior used (`null`: none, the template's shape where nothing reaches).
+    shape_prior: Option<String>,
     iterations: usize,
     converged: bool,
     /// The template's posture found before the fit, degrees per joint `[flexion, abduction,
@@ -85,6 +87,23 @@ pub fn skin_options(
         centre_weight,
         ..SkinOptions::default()
     })
+}
+
+/// The skin's shape prior from `--shape-prior`: none when absent or `none`, the shipped one
+/// for `builtin`, else the file (an error naming it when it is not a prior).
+pub fn shape_prior_option(
+    arg: Option<&Path>,
+) -> Result<Option<std::sync::Arc<crate::skin::shape_prior::ShapePrior>>> {
+    use crate::skin::shape_prior::ShapePrior;
+    match arg {
+        None => Ok(None),
+        Some(p) if p == Path::new("none") => Ok(None),
+        Some(p) if p == Path::new("builtin") => Ok(Some(ShapePrior::builtin())),
+        Some(p) => Ok(Some(std::sync::Arc::new(ShapePrior::from_json(
+            &atomic::read_bytes(p)?,
+            p,
+        )?))),
+    }
 }
 
 /// `ergohand reconstruct SUBJECT_DIR --out OUT` with the default skin options.
@@ -288,6 +307,7 @@ fn reconstruct_stages<'p>(
             fit_resolution: opts.resolution,
             template_posed: skin.posture.is_some(),
             centre_weight: opts.centre_weight,
+            shape_prior: opts.shape_prior.as_ref().map(|p| p.summary()),
             iterations: skin.iterations,
             converged: skin.converged,
             posture_deg: skin.posture.as_ref().map(|p| {

@@ -24,6 +24,7 @@ use super::correspondence::{
 };
 use super::posture_fit::{fit_posture, PostureFit, PostureTargets, SkinnedMarker};
 use super::section_centre::centre_on_cross_section;
+use super::shape_prior::{apply_offsets, subject_features, JointLine, ShapePrior};
 use super::simplify::simplify_qem;
 use super::transfer::{bind, transfer};
 use crate::anatomy::{landmark_names, palm_markers, Dimension, Joint};
@@ -38,6 +39,7 @@ use crate::skeleton::Skeleton;
 use crate::template::{dominant_links, TemplateHand};
 use std::collections::BTreeMap;
 use std::str::FromStr;
+use std::sync::Arc;
 
 /// Faces of the simplified template the fit runs on (the seed paper: 992).
 pub const LOW_FACES: usize = 1000;
@@ -113,6 +115,10 @@ pub struct SkinOptions {
     /// finger's section has a handful of vertices, and moving its pair by less bends the skin
     /// into a bump instead of widening the finger.
     pub finger_caliper_slack_mm: f64,
+    /// Shape prior for what no marker and no caliper reaches, added along the fitted skin's
+    /// normals before the caliper rounds ([`super::shape_prior`]); `None` leaves the template's
+    /// shape there, as the paper.
+    pub shape_prior: Option<Arc<ShapePrior>>,
 }
 
 impl Default for SkinOptions {
@@ -126,6 +132,7 @@ impl Default for SkinOptions {
             caliper_tolerance_mm: CALIPER_TOLERANCE_MM,
             caliper_gain: CALIPER_GAIN,
             finger_caliper_slack_mm: FINGER_CALIPER_SLACK_MM,
+            shape_prior: None,
         }
     }
 }
@@ -347,28 +354,69 @@ pub fn fit_skin(
         FitResolution::Low => Some(bind(&simplified.mesh, &posed.vertices)?),
         FitResolution::Full => None,
     };
+    // The shape prior's field for this subject's dimensions, per template vertex.
+    let prior_offsets: Option<Vec<f64>> = match &opts.shape_prior {
+        Some(p) if p.vertices == posed.n_vertices() => {
+            let joints: BTreeMap<String, JointLine> = full_link_model
+                .map(|m| {
+                    m.joints
+                        .iter()
+                        .map(|e| {
+                            let line = JointLine {
+                                centre: e.centre,
+                                axis: e.axis,
+                            };
+                            (e.joint.name().to_string(), line)
+                        })
+                        .collect()
+                })
+                .unwrap_or_default();
+            let markers: BTreeMap<String, Point> = names
+                .iter()
+                .map(|n| Ok((n.to_string(), target(n)?)))
+                .collect::<Result<_>>()?;
+            Some(p.predict(&subject_features(
+                dimensions,
+                &markers,
+                &joints,
+                marker_offset_mm,
+            )))
+        }
+        Some(p) => {
+            warnings.push(format!(
+                "skin: the shape prior belongs to a template of {} vertices, this one has {}; \
+                 it was not used",
+                p.vertices,
+                posed.n_vertices()
+            ));
+            None
+        }
+        None => None,
+    };
     let fit_once = |distances: &[DistanceConstraint]| -> Result<(FitResult, TriMesh, TriMesh)> {
         let fit = fit_landmarks_with_points(fit_mesh, &landmarks, distances, &centres, &params)?;
-        let (low, high) = match &binding {
-            Some(binding) => {
-                let high = TriMesh {
-                    vertices: transfer(binding, &fit.mesh)?,
-                    faces: posed.faces.clone(),
-                };
-                (fit.mesh.clone(), high)
-            }
-            None => (
-                TriMesh {
-                    vertices: simplified
-                        .kept
-                        .iter()
-                        .map(|&v| fit.mesh.vertices[v])
-                        .collect(),
-                    faces: simplified.mesh.faces.clone(),
-                },
-                fit.mesh.clone(),
-            ),
+        let mut high = match &binding {
+            Some(binding) => TriMesh {
+                vertices: transfer(binding, &fit.mesh)?,
+                faces: posed.faces.clone(),
+            },
+            None => fit.mesh.clone(),
         };
+        let mut low = match &binding {
+            Some(_) => fit.mesh.clone(),
+            None => TriMesh {
+                vertices: simplified
+                    .kept
+                    .iter()
+                    .map(|&v| fit.mesh.vertices[v])
+                    .collect(),
+                faces: simplified.mesh.faces.clone(),
+            },
+        };
+        if let Some(s) = &prior_offsets {
+            high.vertices = apply_offsets(&high, s, |i| i);
+            low.vertices = apply_offsets(&low, s, |j| simplified.kept[j]);
+        }
         Ok((fit, low, high))
     };
     let (mut fit, mut low, mut high) = fit_once(&distances)?;
@@ -802,6 +850,63 @@ mod tests {
         assert!(worst(&rounds) * 5.0 < worst(&paper));
         assert!(mean(&rounds.high) < mean(&paper.high));
         assert_eq!(rounds.high.faces, t.mesh.faces);
+    }
+
+    /// The shipped shape prior on a procedural hand outside its training population (seed 7;
+    /// it was trained on seeds 1001-1060): the skin moves closer to the CT-like reference, an
+    /// independent surface, while the calipers still read their values and the output stays
+    /// homologous.
+    #[test]
+    fn shape_prior_brings_the_skin_closer_on_a_hand_unlike_the_template() {
+        let (s, t, model) = subject_template_model_with(
+            SynthOptions {
+                duration_s: Some(10.0),
+                voxel_mm: 1.0,
+                body: crate::synth::Body::Procedural,
+                ..SynthOptions::new(7, Preset::Clean)
+            },
+            Preset::Clean.error_model(),
+        );
+        let run = |prior: Option<Arc<ShapePrior>>| {
+            fit_skin(
+                &t,
+                &s.trials["reference"],
+                &s.subject.dimensions,
+                s.subject.marker_offset_mm,
+                Some(&model),
+                &SkinOptions {
+                    shape_prior: prior,
+                    ..SkinOptions::default()
+                },
+            )
+            .unwrap()
+        };
+        let tree = AabbTree::new(&s.reference);
+        let mean = |m: &TriMesh| {
+            let d: Vec<f64> = tree.distances(&m.vertices).into_iter().flatten().collect();
+            d.iter().sum::<f64>() / d.len() as f64
+        };
+        let (plain, prior) = (run(None), run(Some(ShapePrior::builtin())));
+        eprintln!(
+            "skin to reference: {:.2} mm without the prior, {:.2} mm with it",
+            mean(&plain.high),
+            mean(&prior.high)
+        );
+        assert!(mean(&prior.high) < 0.8 * mean(&plain.high));
+        for (n, r) in &prior.caliper_residuals_mm {
+            assert!(
+                r.abs() <= FINGER_CALIPER_SLACK_MM + 0.5,
+                "{n}: caliper reads {r:+.2} mm off"
+            );
+        }
+        assert_eq!(prior.high.faces, t.mesh.faces);
+        eprintln!(
+            "inverted faces: {} without, {} with the prior",
+            plain.inverted_faces, prior.inverted_faces
+        );
+        // Offsets along the normals turn faces over where the field changes fast across a
+        // fold (why the prior is not the default yet): a suspect skin says so.
+        assert!(prior.inverted_faces == 0 || prior.warnings.iter().any(|w| w.contains("inverted")));
     }
 
     /// Trials too short for the link model to trust its hinge axes (3 s; its warnings fire):
