@@ -15,7 +15,6 @@ use ergohand::skin::pipeline::{fit_skin, SkinOptions};
 use ergohand::skin::section_centre::{centre_on_cross_section, edge_pairs};
 use ergohand::template::load_template;
 use ergohand::validate::surface_regions::{hand_regions, Region};
-use std::collections::BTreeMap;
 use std::path::PathBuf;
 use std::time::Instant;
 
@@ -47,11 +46,7 @@ fn main() -> ergohand::error::Result<()> {
         let regions = hand_regions(subject.hand)?;
         let model = ergohand::link::estimate_link_model(&subject)?;
         let trial = subject.load_trial(TrialKind::Reference)?;
-        let markers: BTreeMap<String, ergohand::geometry::Point> =
-            ergohand::anatomy::landmark_names()
-                .iter()
-                .filter_map(|n| Some((n.to_string(), trial.mean_position(n, 0..trial.n_frames())?)))
-                .collect();
+        let markers = trial.mean_positions(&ergohand::anatomy::landmark_names());
         for &r in &rounds {
             let opts = SkinOptions {
                 caliper_rounds: r,

@@ -1,10 +1,11 @@
 //! `ergohand shape-prior`: train a skin shape prior from subjects whose true surface is known
 //! (a CT or a simulated reference), each reconstructed without a prior.
 
+use crate::anatomy::{landmark_names, Side};
 use crate::error::{Error, Result};
 use crate::geometry::{Point, Vec3};
 use crate::io::{atomic, obj, ply, Units};
-use crate::mocap::subject::Subject;
+use crate::mocap::subject::{Subject, TrialKind};
 use crate::skin::shape_prior::{
     fill_and_smooth, normal_offsets, subject_features, train_shape_prior, JointLine, PriorSample,
     ShapePrior, SMOOTHING_PASSES,
@@ -12,57 +13,40 @@ use crate::skin::shape_prior::{
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
-/// The landmark markers' mean positions over the static reference trial (the skin fit's
-/// targets).
-fn static_markers(subject: &Subject) -> Result<BTreeMap<String, Point>> {
-    let t = subject.load_trial(crate::mocap::subject::TrialKind::Reference)?;
-    Ok(crate::anatomy::landmark_names()
+/// Per template vertex of each hand: whether it belongs to the forearm (its dominant link),
+/// which is scored nowhere: a reference is cut across the arm, and past the cut a ray meets the
+/// reference's cap, not the arm's skin.
+fn forearm_vertices() -> Result<Vec<(Side, Vec<bool>)>> {
+    let arm = crate::anatomy::Link::Arm.index();
+    [Side::Right, Side::Left]
         .into_iter()
-        .filter_map(|n| Some((n.to_string(), t.mean_position(n, 0..t.n_frames())?)))
-        .collect())
+        .map(|side| {
+            let template = crate::template::load_template(side)?;
+            let owners = crate::template::dominant_links(&template.weights);
+            Ok((side, owners.into_iter().map(|o| o == arm).collect()))
+        })
+        .collect()
 }
 
 /// Each joint's centre and (hinges) axis from a `link_model.json`, in the reference trial's
 /// frame.
 fn link_model_joints(path: &Path) -> Result<BTreeMap<String, JointLine>> {
-    let v: serde_json::Value = serde_json::from_slice(&atomic::read_bytes(path)?)
-        .map_err(|e| Error::input(path, format!("not JSON: {e}")))?;
-    let vec3 = |x: &serde_json::Value| -> Option<Vec3> {
-        let a = x.as_array()?;
-        if a.len() != 3 {
-            return None;
-        }
-        Some(Vec3::new(a[0].as_f64()?, a[1].as_f64()?, a[2].as_f64()?))
-    };
-    let joints = v["joints"]
-        .as_object()
-        .ok_or_else(|| Error::input(path, "joints: missing"))?;
-    joints
-        .iter()
+    Ok(crate::validate::link_accuracy::read_joints(path)?
+        .into_iter()
         .map(|(name, j)| {
-            let centre = vec3(&j["centre"]).ok_or_else(|| {
-                Error::input(path, format!("joints.{name}.centre: not 3 numbers"))
-            })?;
-            let axis = if j["dof"].as_u64() == Some(1) {
-                vec3(&j["axis"])
-            } else {
-                None
+            let line = JointLine {
+                centre: Point::from(j.centre),
+                axis: j.axis.filter(|_| j.dof == 1).map(Vec3::from),
             };
-            Ok((
-                name.clone(),
-                JointLine {
-                    centre: Point::from(centre),
-                    axis,
-                },
-            ))
+            (name, line)
         })
-        .collect()
+        .collect())
 }
 
 /// The training sample of one subject: `DIR/subject.toml` (its dimensions),
 /// `DIR/reference.ply` (its surface) and `DIR/MODEL/skin.obj` (its skin fitted without a
-/// prior, which `DIR/MODEL/report.json` must say).
-pub fn prior_sample(dir: &Path, model: &str) -> Result<PriorSample> {
+/// prior, which `DIR/MODEL/report.json` must say); `forearm` from [`forearm_vertices`].
+fn prior_sample(dir: &Path, model: &str, forearm: &[(Side, Vec<bool>)]) -> Result<PriorSample> {
     let subject = Subject::load(dir)?;
     let report_path = dir.join(model).join("report.json");
     let report: serde_json::Value = serde_json::from_slice(&atomic::read_bytes(&report_path)?)
@@ -74,28 +58,30 @@ pub fn prior_sample(dir: &Path, model: &str) -> Result<PriorSample> {
              subjects with --shape-prior none",
         ));
     }
-    let skin = obj::read_obj(&dir.join(model).join("skin.obj"), Units::Millimetres)?;
-    let reference = ply::read_ply(&dir.join("reference.ply"), Units::Millimetres)?.mesh;
-    let raw = normal_offsets(&skin, &reference);
-    let rings = skin.topology().vertex_rings;
-    // The forearm is scored nowhere: a reference is cut across it, and past the cut a ray meets
-    // the reference's cap, not the arm's skin.
-    let template = crate::template::load_template(subject.hand)?;
-    if template.mesh.n_vertices() != skin.n_vertices() {
+    let skin_path = dir.join(model).join("skin.obj");
+    let skin = obj::read_obj(&skin_path, Units::Millimetres)?;
+    let forearm = &forearm
+        .iter()
+        .find(|(side, _)| *side == subject.hand)
+        .expect("both hands")
+        .1;
+    if forearm.len() != skin.n_vertices() {
         return Err(Error::input(
-            dir.join(model).join("skin.obj"),
+            &skin_path,
             format!(
                 "{} vertices: not a skin of the generic template ({})",
                 skin.n_vertices(),
-                template.mesh.n_vertices()
+                forearm.len()
             ),
         ));
     }
-    let owners = crate::template::dominant_links(&template.weights);
-    let arm = crate::anatomy::Link::Arm.index();
+    let reference = ply::read_ply(&dir.join("reference.ply"), Units::Millimetres)?.mesh;
+    let raw = normal_offsets(&skin, &reference);
+    let rings = skin.topology().vertex_rings;
+    let static_trial = subject.load_trial(TrialKind::Reference)?;
     let features = subject_features(
         &subject.dimensions,
-        &static_markers(&subject)?,
+        &static_trial.mean_positions(&landmark_names()),
         &link_model_joints(&dir.join(model).join("link_model.json"))?,
         subject.marker_offset_mm,
     );
@@ -104,8 +90,8 @@ pub fn prior_sample(dir: &Path, model: &str) -> Result<PriorSample> {
         features,
         measured: raw
             .iter()
-            .zip(&owners)
-            .map(|(r, &o)| r.is_some() && o != arm)
+            .zip(forearm)
+            .map(|(r, &arm)| r.is_some() && !arm)
             .collect(),
         offsets: fill_and_smooth(&raw, &rings, SMOOTHING_PASSES),
     })
@@ -121,10 +107,11 @@ pub fn shape_prior(subjects: &[PathBuf], model: &str, out: &Path) -> Result<Shap
             "--out is a folder; give the prior's file name, e.g. prior.json",
         ));
     }
+    let forearm = forearm_vertices()?;
     let pb = super::progress(subjects.len() as u64, "subjects");
     let mut samples = Vec::new();
     for dir in subjects {
-        samples.push(prior_sample(dir, model)?);
+        samples.push(prior_sample(dir, model, &forearm)?);
         pb.inc(1);
     }
     pb.finish_and_clear();

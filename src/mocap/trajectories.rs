@@ -163,6 +163,15 @@ impl Trajectories {
         (count > 0).then(|| Point::from(sum / count as f64))
     }
 
+    /// [`Self::mean_position`] over the whole trial of each of `names` that has a valid sample:
+    /// the static trial's markers as the skin fit and the calipers read them.
+    pub fn mean_positions(&self, names: &[&str]) -> BTreeMap<String, Point> {
+        names
+            .iter()
+            .filter_map(|n| Some((n.to_string(), self.mean_position(n, 0..self.n_frames())?)))
+            .collect()
+    }
+
     /// Fraction of the frames in which `name` is valid (0 when the marker is absent).
     pub fn valid_fraction(&self, name: &str) -> f64 {
         match self.track(name) {

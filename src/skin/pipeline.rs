@@ -209,16 +209,15 @@ pub fn fit_skin(
     let link_model = link_model.map(|m| &m.skeleton);
     let names = landmark_names();
     reference.require(&names)?;
-    let target = |n: &str| -> Result<Point> {
-        reference
-            .mean_position(n, 0..reference.n_frames())
-            .ok_or_else(|| {
-                Error::input(
-                    &reference.source,
-                    format!("landmark '{n}' has no valid sample"),
-                )
-            })
-    };
+    // The static trial's markers, read once: every step below fits or measures against them.
+    let markers = reference.mean_positions(&names);
+    if let Some(n) = names.iter().find(|n| !markers.contains_key(**n)) {
+        return Err(Error::input(
+            &reference.source,
+            format!("landmark '{n}' has no valid sample"),
+        ));
+    }
+    let target = |n: &str| markers[n];
     let spec = &template.spec;
     let mut warnings = Vec::new();
     let normals = template.mesh.vertex_normals();
@@ -231,10 +230,7 @@ pub fn fit_skin(
         .iter()
         .map(|n| marker_on_template(n))
         .collect();
-    let dst: Vec<Point> = palm_markers()
-        .iter()
-        .map(|n| target(n))
-        .collect::<Result<_>>()?;
+    let dst: Vec<Point> = palm_markers().iter().map(|n| target(n)).collect();
     let pre = absolute_orientation(&src, &dst, None, false)
         .map_err(|e| Error::input(&reference.source, format!("palm markers: {e}")))?
         .isometry();
@@ -250,10 +246,7 @@ pub fn fit_skin(
             &aligned_skeleton,
             &PostureTargets {
                 subject: sk,
-                subject_markers: names
-                    .iter()
-                    .map(|n| Ok((n.to_string(), target(n)?)))
-                    .collect::<Result<_>>()?,
+                subject_markers: markers.clone(),
                 template_markers: names
                     .iter()
                     .map(|n| {
@@ -304,14 +297,12 @@ pub fn fit_skin(
     // 4. The landmark fit with the caliper dimensions (equation 2) and the centre terms.
     let landmarks: Vec<LandmarkConstraint> = names
         .iter()
-        .map(|n| {
-            Ok(LandmarkConstraint {
-                vertex: index(spec.landmarks[*n]),
-                target: target(n)?,
-                offset_mm: marker_offset_mm,
-            })
+        .map(|n| LandmarkConstraint {
+            vertex: index(spec.landmarks[*n]),
+            target: target(n),
+            offset_mm: marker_offset_mm,
         })
-        .collect::<Result<_>>()?;
+        .collect();
     let mut distances: Vec<DistanceConstraint> = Vec::new();
     for (d, &len) in dimensions {
         match spec.dimension(*d) {
@@ -371,10 +362,6 @@ pub fn fit_skin(
                         .collect()
                 })
                 .unwrap_or_default();
-            let markers: BTreeMap<String, Point> = names
-                .iter()
-                .map(|n| Ok((n.to_string(), target(n)?)))
-                .collect::<Result<_>>()?;
             Some(p.predict(&subject_features(
                 dimensions,
                 &markers,
@@ -430,10 +417,6 @@ pub fn fit_skin(
     // centres on the skin's cross-section), which moves with the skin.
     let edge_pairs = super::section_centre::edge_pairs(template)?;
     let measure_skeleton = link_model.unwrap_or(&posed_skeleton);
-    let markers: BTreeMap<String, Point> = names
-        .iter()
-        .map(|n| Ok((n.to_string(), target(n)?)))
-        .collect::<Result<_>>()?;
     let caliper_error = |high: &TriMesh| -> BTreeMap<String, f64> {
         let landmarks = landmarks_on_skin(high, &markers);
         let (centred, shifts) = centre_on_cross_section(measure_skeleton, high, &edge_pairs);
@@ -718,17 +701,7 @@ mod tests {
             },
             Preset::Typical.error_model().first_capture_model(),
         );
-        let run = |opts: &SkinOptions| {
-            fit_skin(
-                &t,
-                &s.trials["reference"],
-                &s.subject.dimensions,
-                s.subject.marker_offset_mm,
-                Some(&model),
-                opts,
-            )
-            .unwrap()
-        };
+        let run = |opts: &SkinOptions| fit_with_model(&s, &t, &model, opts);
         let tree = AabbTree::new(&s.reference);
         let surface = |m: &TriMesh| {
             let d: Vec<f64> = tree
@@ -786,14 +759,10 @@ mod tests {
         );
     }
 
-    /// On a body the template cannot reach (the procedural one), the template's vertex pairs
-    /// are not the sections' extremes: asked for the given values, the skin's calipers read
-    /// them millimetres off. The caliper rounds make a caliper on the skin read them (about
-    /// within the fingers' slack, the worst miss a fifth or less), and the skin moves closer to
-    /// the CT-like reference, an independent surface.
-    #[test]
-    fn caliper_rounds_meet_the_calipers_on_a_hand_unlike_the_template() {
-        let (s, t, model) = subject_template_model_with(
+    /// A procedural hand (seed 7, clean capture, 10 s trials), outside every training and
+    /// tuning population: its subject, its template and its link model.
+    fn procedural_seven() -> (crate::synth::SyntheticSubject, TemplateHand, LinkModel) {
+        subject_template_model_with(
             SynthOptions {
                 duration_s: Some(10.0),
                 voxel_mm: 1.0,
@@ -801,26 +770,50 @@ mod tests {
                 ..SynthOptions::new(7, Preset::Clean)
             },
             Preset::Clean.error_model(),
-        );
+        )
+    }
+
+    /// The skin fit of a simulated subject's static trial with its link model.
+    fn fit_with_model(
+        s: &crate::synth::SyntheticSubject,
+        t: &TemplateHand,
+        model: &LinkModel,
+        opts: &SkinOptions,
+    ) -> SkinFit {
+        fit_skin(
+            t,
+            &s.trials["reference"],
+            &s.subject.dimensions,
+            s.subject.marker_offset_mm,
+            Some(model),
+            opts,
+        )
+        .unwrap()
+    }
+
+    /// Mean distance of `m`'s vertices from the surface behind `tree`, mm.
+    fn mean_distance(tree: &AabbTree, m: &TriMesh) -> f64 {
+        let d: Vec<f64> = tree.distances(&m.vertices).into_iter().flatten().collect();
+        d.iter().sum::<f64>() / d.len() as f64
+    }
+
+    /// On a body the template cannot reach (the procedural one), the template's vertex pairs
+    /// are not the sections' extremes: asked for the given values, the skin's calipers read
+    /// them millimetres off. The caliper rounds make a caliper on the skin read them (about
+    /// within the fingers' slack, the worst miss a fifth or less), and the skin moves closer to
+    /// the CT-like reference, an independent surface.
+    #[test]
+    fn caliper_rounds_meet_the_calipers_on_a_hand_unlike_the_template() {
+        let (s, t, model) = procedural_seven();
         let run = |rounds: usize| {
-            fit_skin(
-                &t,
-                &s.trials["reference"],
-                &s.subject.dimensions,
-                s.subject.marker_offset_mm,
-                Some(&model),
-                &SkinOptions {
-                    caliper_rounds: rounds,
-                    ..SkinOptions::default()
-                },
-            )
-            .unwrap()
+            let opts = SkinOptions {
+                caliper_rounds: rounds,
+                ..SkinOptions::default()
+            };
+            fit_with_model(&s, &t, &model, &opts)
         };
         let tree = AabbTree::new(&s.reference);
-        let mean = |m: &TriMesh| {
-            let d: Vec<f64> = tree.distances(&m.vertices).into_iter().flatten().collect();
-            d.iter().sum::<f64>() / d.len() as f64
-        };
+        let mean = |m: &TriMesh| mean_distance(&tree, m);
         let worst = |f: &SkinFit| {
             f.caliper_residuals_mm
                 .values()
@@ -858,34 +851,16 @@ mod tests {
     /// homologous.
     #[test]
     fn shape_prior_brings_the_skin_closer_on_a_hand_unlike_the_template() {
-        let (s, t, model) = subject_template_model_with(
-            SynthOptions {
-                duration_s: Some(10.0),
-                voxel_mm: 1.0,
-                body: crate::synth::Body::Procedural,
-                ..SynthOptions::new(7, Preset::Clean)
-            },
-            Preset::Clean.error_model(),
-        );
+        let (s, t, model) = procedural_seven();
         let run = |prior: Option<Arc<ShapePrior>>| {
-            fit_skin(
-                &t,
-                &s.trials["reference"],
-                &s.subject.dimensions,
-                s.subject.marker_offset_mm,
-                Some(&model),
-                &SkinOptions {
-                    shape_prior: prior,
-                    ..SkinOptions::default()
-                },
-            )
-            .unwrap()
+            let opts = SkinOptions {
+                shape_prior: prior,
+                ..SkinOptions::default()
+            };
+            fit_with_model(&s, &t, &model, &opts)
         };
         let tree = AabbTree::new(&s.reference);
-        let mean = |m: &TriMesh| {
-            let d: Vec<f64> = tree.distances(&m.vertices).into_iter().flatten().collect();
-            d.iter().sum::<f64>() / d.len() as f64
-        };
+        let mean = |m: &TriMesh| mean_distance(&tree, m);
         let (plain, prior) = (run(None), run(Some(ShapePrior::builtin())));
         eprintln!(
             "skin to reference: {:.2} mm without the prior, {:.2} mm with it",

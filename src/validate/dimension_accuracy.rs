@@ -171,10 +171,7 @@ mod tests {
         )
         .unwrap();
         let t = &s.trials["reference"];
-        let markers: BTreeMap<String, Point> = landmark_names()
-            .iter()
-            .filter_map(|n| Some((n.to_string(), t.mean_position(n, 0..t.n_frames())?)))
-            .collect();
+        let markers = t.mean_positions(&landmark_names());
         let sk = skeleton_from_records(&s.truth.joints, s.subject.hand, Path::new("truth.json"))
             .unwrap();
         let truth = &s.truth.dimensions;

@@ -167,13 +167,7 @@ pub fn validate_subject(
     // markers meet the skin.
     let skeleton = skeleton_from_records(&joints, subject.hand, &model_path)?;
     let reference_trial = subject.load_trial(TrialKind::Reference)?;
-    let markers: BTreeMap<String, crate::geometry::Point> = landmark_names()
-        .iter()
-        .filter_map(|n| {
-            let p = reference_trial.mean_position(n, 0..reference_trial.n_frames())?;
-            Some((n.to_string(), p))
-        })
-        .collect();
+    let markers = reference_trial.mean_positions(&landmark_names());
     let dimensions = dimension_accuracy(
         &skin,
         &skeleton,
