@@ -541,19 +541,79 @@ impl ShapePrior {
     }
 }
 
-/// Move every vertex of `mesh` by `offsets[index(i)]` along its unit normal.
-pub fn apply_offsets(
+/// A face counts as folded by a displacement when its normal turns by more than this angle's
+/// cosine (60°) or its area falls below [`FOLD_AREA_RATIO`] of the face's before.
+const FOLD_COS: f64 = 0.5;
+
+/// See [`FOLD_COS`].
+const FOLD_AREA_RATIO: f64 = 0.25;
+
+/// Relaxation passes [`fold_free_displacement`] makes at most.
+pub const UNFOLD_PASSES: usize = 200;
+
+/// The displacement that moves every vertex of `mesh` by `offsets[i]` along its unit normal,
+/// relaxed where it would fold the surface, and the number of faces still folded after
+/// `max_passes` relaxations. `guard` holds, per face, a direction its normal must keep facing
+/// (the template's face carried by its bone); a face already turned away before is left to
+/// the fit's own fold check.
+///
+/// A normal offset folds a surface wherever it exceeds the local radius of curvature (an
+/// inward offset on a ridge, an outward one in a crease): the offset surface of a ridge 3 mm
+/// lower is not the ridge's normal offset. Where a face would turn by more than 60° or shrink
+/// to a quarter, the displacement of its vertices and their rings is averaged with the
+/// neighbours' (half a uniform-Laplacian step, on the 3D vectors, so that converging normals
+/// cancel), and the test repeated; elsewhere the offsets stay exactly as predicted.
+pub fn fold_free_displacement(
     mesh: &TriMesh,
     offsets: &[f64],
-    index: impl Fn(usize) -> usize,
-) -> Vec<Point> {
+    guard: &[Vec3],
+    max_passes: usize,
+) -> (Vec<Vec3>, usize) {
     let normals = mesh.vertex_normals();
-    mesh.vertices
-        .iter()
-        .zip(&normals)
-        .enumerate()
-        .map(|(i, (v, n))| v + n * offsets[index(i)])
-        .collect()
+    let rings = mesh.topology().vertex_rings;
+    let mut d: Vec<Vec3> = normals.iter().zip(offsets).map(|(n, s)| n * *s).collect();
+    let before: Vec<Vec3> = (0..mesh.n_faces()).map(|f| mesh.face_cross(f)).collect();
+    let folded = |d: &[Vec3]| -> Vec<usize> {
+        mesh.faces
+            .iter()
+            .enumerate()
+            .filter(|(f, face)| {
+                let p = face.map(|v| mesh.vertices[v] + d[v]);
+                let (a, b) = (before[*f], (p[1] - p[0]).cross(&(p[2] - p[0])));
+                let g = guard[*f];
+                a.dot(&b) < FOLD_COS * a.norm() * b.norm()
+                    || b.norm() < FOLD_AREA_RATIO * a.norm()
+                    || (g.dot(&a) > 0.0 && g.dot(&b) <= 0.0)
+            })
+            .map(|(f, _)| f)
+            .collect()
+    };
+    let mut bad_faces = folded(&d);
+    for _ in 0..max_passes {
+        if bad_faces.is_empty() {
+            break;
+        }
+        let mut relax = vec![false; d.len()];
+        for &f in &bad_faces {
+            for &v in &mesh.faces[f] {
+                relax[v] = true;
+                for &w in &rings[v] {
+                    relax[w] = true;
+                }
+            }
+        }
+        d = (0..d.len())
+            .map(|i| {
+                let r = &rings[i];
+                if !relax[i] || r.is_empty() {
+                    return d[i];
+                }
+                0.5 * d[i] + 0.5 * r.iter().map(|&j| d[j]).sum::<Vec3>() / r.len() as f64
+            })
+            .collect();
+        bad_faces = folded(&d);
+    }
+    (d, bad_faces.len())
 }
 
 static BUILTIN_JSON: &str = include_str!("../../assets/generic-hand/shape-prior.json");
@@ -600,6 +660,75 @@ mod tests {
             f.swap(1, 2);
         }
         assert!(normal_offsets(&skin, &flipped).iter().all(Option::is_none));
+    }
+
+    fn face_normals(m: &TriMesh, d: &[Vec3]) -> Vec<Vec3> {
+        m.faces
+            .iter()
+            .map(|f| {
+                let p = f.map(|v| m.vertices[v] + d[v]);
+                (p[1] - p[0]).cross(&(p[2] - p[0]))
+            })
+            .collect()
+    }
+
+    /// Offsets that fold nothing come back exactly as normal offsets.
+    #[test]
+    fn fold_free_displacement_keeps_offsets_that_fold_nothing() {
+        let m = sphere(10.0);
+        let offsets: Vec<f64> = m.vertices.iter().map(|v| 0.1 * v.z).collect();
+        let guard = face_normals(&m, &vec![Vec3::zeros(); m.n_vertices()]);
+        let (d, folded) = fold_free_displacement(&m, &offsets, &guard, UNFOLD_PASSES);
+        assert_eq!(folded, 0);
+        for ((x, n), s) in d.iter().zip(m.vertex_normals()).zip(&offsets) {
+            assert!((x - n * *s).norm() < 1e-12);
+        }
+    }
+
+    /// An inward offset deeper than the radius on a cap of a sphere turns the cap inside out
+    /// along the normals; relaxed, no face faces inward and the far side keeps its offsets.
+    #[test]
+    fn fold_free_displacement_unfolds_an_offset_beyond_the_radius() {
+        let r = 5.0;
+        let m = sphere(r);
+        let offsets: Vec<f64> = m
+            .vertices
+            .iter()
+            .map(|v| if v.z > 0.5 * r { -1.2 * r } else { 0.0 })
+            .collect();
+        let before = face_normals(&m, &vec![Vec3::zeros(); m.n_vertices()]);
+        let naive: Vec<Vec3> = m
+            .vertex_normals()
+            .iter()
+            .zip(&offsets)
+            .map(|(n, s)| n * *s)
+            .collect();
+        let turned = |d: &[Vec3]| {
+            face_normals(&m, d)
+                .iter()
+                .zip(&before)
+                .filter(|(b, a)| a.dot(b) < 0.0)
+                .count()
+        };
+        assert!(turned(&naive) > 10, "the naive offsets fold the cap");
+        let (d, folded) = fold_free_displacement(&m, &offsets, &before, UNFOLD_PASSES);
+        eprintln!(
+            "naive {} turned, relaxed {} turned, {folded} folded",
+            turned(&naive),
+            turned(&d)
+        );
+        assert_eq!(folded, 0);
+        assert_eq!(turned(&d), 0);
+        // The cap still moves in: relaxing spreads the dent, it does not undo it.
+        let top = (0..m.n_vertices())
+            .max_by(|&a, &b| m.vertices[a].z.total_cmp(&m.vertices[b].z))
+            .unwrap();
+        assert!(d[top].z < -0.25 * r, "the top moved {:.2} mm", d[top].z);
+        for (v, x) in m.vertices.iter().zip(&d) {
+            if v.z < -0.5 * r {
+                assert_eq!(*x, Vec3::zeros());
+            }
+        }
     }
 
     #[test]
