@@ -389,6 +389,8 @@ pub fn fit_skin(
     // Per face, the template's normal carried by the face's bone: what a face of the skin
     // must keep facing.
     let guard = bone_carried_normals(&aligned, &owners, &rotations);
+    // Every round's skin has the template's faces: one topology serves them all.
+    let topology = prior_offsets.as_ref().map(|_| aligned.topology());
     let fit_once = |distances: &[DistanceConstraint]| -> Result<(FitResult, TriMesh, TriMesh)> {
         let fit = fit_landmarks_with_points(fit_mesh, &landmarks, distances, &centres, &params)?;
         let mut high = match &binding {
@@ -409,10 +411,10 @@ pub fn fit_skin(
                 faces: simplified.mesh.faces.clone(),
             },
         };
-        if let Some(s) = &prior_offsets {
+        if let (Some(s), Some(topology)) = (&prior_offsets, &topology) {
             // Relaxed on each round's own skin: a displacement found on another would fold
             // what it did not see.
-            let (d, _) = fold_free_displacement(&high, s, &guard, UNFOLD_PASSES);
+            let (d, _) = fold_free_displacement(&high, topology, s, &guard, UNFOLD_PASSES);
             for (v, x) in high.vertices.iter_mut().zip(d.iter()) {
                 *v += x;
             }

@@ -32,7 +32,7 @@
 use crate::anatomy::Dimension;
 use crate::error::{Error, Result};
 use crate::geometry::closest_point::AabbTree;
-use crate::geometry::{Point, TriMesh, Vec3};
+use crate::geometry::{Point, Topology, TriMesh, Vec3};
 use nalgebra::{DMatrix, DVector, SymmetricEigen};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
@@ -106,17 +106,26 @@ pub fn fill_and_smooth(field: &[Option<f64>], rings: &[Vec<usize>], passes: usiz
     }
     let mut x: Vec<f64> = known.into_iter().map(|v| v.unwrap_or(0.0)).collect();
     for _ in 0..passes {
-        x = (0..x.len())
-            .map(|i| {
-                let r = &rings[i];
-                if r.is_empty() {
-                    return x[i];
-                }
-                0.5 * x[i] + 0.5 * r.iter().map(|&j| x[j]).sum::<f64>() / r.len() as f64
-            })
-            .collect();
+        x = (0..x.len()).map(|i| half_ring_step(&x, rings, i)).collect();
     }
     x
+}
+
+/// Value `i` of `x` averaged with the mean of its ring's (half a uniform-Laplacian step); a
+/// vertex without neighbours keeps its value.
+fn half_ring_step<T>(x: &[T], rings: &[Vec<usize>], i: usize) -> T
+where
+    T: Copy
+        + std::ops::Add<Output = T>
+        + std::ops::Mul<f64, Output = T>
+        + std::ops::Div<f64, Output = T>
+        + std::iter::Sum<T>,
+{
+    let r = &rings[i];
+    if r.is_empty() {
+        return x[i];
+    }
+    x[i] * 0.5 + r.iter().map(|&j| x[j]).sum::<T>() / r.len() as f64 * 0.5
 }
 
 /// One training subject: its features and its fitted skin's normal offsets to its
@@ -551,7 +560,8 @@ const FOLD_AREA_RATIO: f64 = 0.25;
 /// Relaxation passes [`fold_free_displacement`] makes at most.
 pub const UNFOLD_PASSES: usize = 200;
 
-/// The displacement that moves every vertex of `mesh` by `offsets[i]` along its unit normal,
+/// The displacement that moves every vertex of `mesh` (whose [`Topology`] is `topology`) by
+/// `offsets[i]` along its unit normal,
 /// relaxed where it would fold the surface, and the number of faces still folded after
 /// `max_passes` relaxations. `guard` holds, per face, a direction its normal must keep facing
 /// (the template's face carried by its bone); a face already turned away before is left to
@@ -565,30 +575,23 @@ pub const UNFOLD_PASSES: usize = 200;
 /// cancel), and the test repeated; elsewhere the offsets stay exactly as predicted.
 pub fn fold_free_displacement(
     mesh: &TriMesh,
+    topology: &Topology,
     offsets: &[f64],
     guard: &[Vec3],
     max_passes: usize,
 ) -> (Vec<Vec3>, usize) {
+    let rings = &topology.vertex_rings;
     let normals = mesh.vertex_normals();
-    let rings = mesh.topology().vertex_rings;
     let mut d: Vec<Vec3> = normals.iter().zip(offsets).map(|(n, s)| n * *s).collect();
-    let before: Vec<Vec3> = (0..mesh.n_faces()).map(|f| mesh.face_cross(f)).collect();
-    let folded = |d: &[Vec3]| -> Vec<usize> {
-        mesh.faces
-            .iter()
-            .enumerate()
-            .filter(|(f, face)| {
-                let p = face.map(|v| mesh.vertices[v] + d[v]);
-                let (a, b) = (before[*f], (p[1] - p[0]).cross(&(p[2] - p[0])));
-                let g = guard[*f];
-                a.dot(&b) < FOLD_COS * a.norm() * b.norm()
-                    || b.norm() < FOLD_AREA_RATIO * a.norm()
-                    || (g.dot(&a) > 0.0 && g.dot(&b) <= 0.0)
-            })
-            .map(|(f, _)| f)
-            .collect()
+    let folded = |f: usize, d: &[Vec3]| -> bool {
+        let p = mesh.faces[f].map(|v| mesh.vertices[v] + d[v]);
+        let (a, b) = (mesh.face_cross(f), (p[1] - p[0]).cross(&(p[2] - p[0])));
+        let g = guard[f];
+        a.dot(&b) < FOLD_COS * a.norm() * b.norm()
+            || b.norm() < FOLD_AREA_RATIO * a.norm()
+            || (g.dot(&a) > 0.0 && g.dot(&b) <= 0.0)
     };
-    let mut bad_faces = folded(&d);
+    let mut bad_faces: Vec<usize> = (0..mesh.n_faces()).filter(|&f| folded(f, &d)).collect();
     for _ in 0..max_passes {
         if bad_faces.is_empty() {
             break;
@@ -602,16 +605,22 @@ pub fn fold_free_displacement(
                 }
             }
         }
-        d = (0..d.len())
-            .map(|i| {
-                let r = &rings[i];
-                if !relax[i] || r.is_empty() {
-                    return d[i];
-                }
-                0.5 * d[i] + 0.5 * r.iter().map(|&j| d[j]).sum::<Vec3>() / r.len() as f64
-            })
+        let relaxed: Vec<usize> = (0..d.len()).filter(|&i| relax[i]).collect();
+        let moved: Vec<Vec3> = relaxed
+            .iter()
+            .map(|&i| half_ring_step(&d, rings, i))
             .collect();
-        bad_faces = folded(&d);
+        for (&i, x) in relaxed.iter().zip(moved) {
+            d[i] = x;
+        }
+        // Only faces touching a moved vertex can have changed; every folded face is one.
+        let mut touched: Vec<usize> = relaxed
+            .iter()
+            .flat_map(|&v| topology.vertex_faces[v].iter().copied())
+            .collect();
+        touched.sort_unstable();
+        touched.dedup();
+        bad_faces = touched.into_iter().filter(|&f| folded(f, &d)).collect();
     }
     (d, bad_faces.len())
 }
@@ -678,7 +687,8 @@ mod tests {
         let m = sphere(10.0);
         let offsets: Vec<f64> = m.vertices.iter().map(|v| 0.1 * v.z).collect();
         let guard = face_normals(&m, &vec![Vec3::zeros(); m.n_vertices()]);
-        let (d, folded) = fold_free_displacement(&m, &offsets, &guard, UNFOLD_PASSES);
+        let (d, folded) =
+            fold_free_displacement(&m, &m.topology(), &offsets, &guard, UNFOLD_PASSES);
         assert_eq!(folded, 0);
         for ((x, n), s) in d.iter().zip(m.vertex_normals()).zip(&offsets) {
             assert!((x - n * *s).norm() < 1e-12);
@@ -711,7 +721,8 @@ mod tests {
                 .count()
         };
         assert!(turned(&naive) > 10, "the naive offsets fold the cap");
-        let (d, folded) = fold_free_displacement(&m, &offsets, &before, UNFOLD_PASSES);
+        let (d, folded) =
+            fold_free_displacement(&m, &m.topology(), &offsets, &before, UNFOLD_PASSES);
         eprintln!(
             "naive {} turned, relaxed {} turned, {folded} folded",
             turned(&naive),
