@@ -5,7 +5,8 @@
 //!
 //! The data flows one way, one module per stage of the method:
 //! [`mocap`] (subject folders, C3D trials) -> link model -> skin -> tet -> pose -> grasp,
-//! with validation reading the outputs. Underneath sit [`geometry`] (meshes, Horn's absolute
+//! with validation reading the outputs; [`reconstruct`] runs the stages from the trials to the
+//! skinned hand for one subject. Underneath sit [`geometry`] (meshes, Horn's absolute
 //! orientation, Loop subdivision), [`io`] (mesh formats), [`skeleton`] (the link tree, joint
 //! frames, forward kinematics and limits) and [`template`] (the generic hand and its spec).
 //! [`skin`] makes the template homologous to the subject; [`measure`] takes the caliper
@@ -24,6 +25,7 @@ pub mod link;
 pub mod measure;
 pub mod mocap;
 pub mod pose;
+pub mod reconstruct;
 pub mod render;
 pub mod rng;
 pub mod skeleton;

@@ -32,15 +32,17 @@ fn layer(module: &str) -> Option<u32> {
         "skin" => 6,
         "tet" => 7,
         "pose" => 8,
-        "grasp" => 9,
+        // One subject's stages from the trials to the skinned hand.
+        "reconstruct" => 9,
+        "grasp" => 10,
         // Readers of what the stages produce: the simulator and the validation.
-        "synth" => 10,
-        "validate" => 11,
+        "synth" => 11,
+        "validate" => 12,
         // The command jobs, over everything.
-        "cli" => 12,
+        "cli" => 13,
         // The crate root (re-exports) and the binary.
-        "lib" => 13,
-        "main" => 14,
+        "lib" => 14,
+        "main" => 15,
         _ => return None,
     })
 }

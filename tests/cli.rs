@@ -685,3 +685,92 @@ fn the_template_cannot_reach_the_procedural_body() {
         surface.mean_mm
     );
 }
+
+/// The library's one-call reconstruction is what the command writes: the same link model
+/// (section 3.6 applied once, on the final skin: the report's shifts are the ones the link
+/// model records), the same skin and the same report, and a template of the other hand is
+/// refused naming the subject.
+#[test]
+fn the_library_reconstruction_is_what_the_command_writes() {
+    use ergohand::mocap::subject::Subject;
+    let dir = tempfile::tempdir().unwrap();
+    let subj = dir.path().join("S");
+    let out = dir.path().join("OUT");
+    let mut opts = ergohand::cli::synth_options(
+        6,
+        ergohand::synth::Preset::Typical,
+        ergohand::anatomy::Side::Left,
+        ergohand::synth::Posture::Template,
+        ergohand::synth::Body::Template,
+        Some(8.0),
+    );
+    opts.voxel_mm = 2.0;
+    ergohand::cli::synth(&opts, &subj, false).unwrap();
+    ergohand::cli::reconstruct(&subj, &out).unwrap();
+
+    let subject = Subject::load(&subj).unwrap();
+    let template = ergohand::template::load_template(subject.hand).unwrap();
+    let skin_opts = ergohand::skin::pipeline::SkinOptions::default();
+    let r = ergohand::reconstruct::reconstruct(&subject, &template, &skin_opts, None).unwrap();
+
+    let written = std::fs::read_to_string(out.join("link_model.json")).unwrap();
+    assert_eq!(written, r.link_model.to_json());
+    let skin = ergohand::io::obj::read_obj(&out.join("skin.obj"), Units::Millimetres).unwrap();
+    assert_eq!(skin.faces, r.skin.high.faces);
+    let worst = skin
+        .vertices
+        .iter()
+        .zip(&r.skin.high.vertices)
+        .map(|(a, b)| (a - b).norm())
+        .fold(0.0, f64::max);
+    assert!(worst < 1e-5, "skin.obj differs by {worst} mm");
+    let mut report: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap();
+    let mut own = serde_json::to_value(&r.report).unwrap();
+    for v in [&mut report, &mut own] {
+        v.as_object_mut().unwrap().remove("timings_s");
+    }
+    // serde_json reads a float back to within an ulp, not always exactly.
+    fn same(a: &serde_json::Value, b: &serde_json::Value) -> bool {
+        use serde_json::Value::*;
+        match (a, b) {
+            (Number(x), Number(y)) => {
+                let (x, y) = (x.as_f64().unwrap(), y.as_f64().unwrap());
+                (x - y).abs() <= 1e-12 * x.abs().max(y.abs()).max(1.0)
+            }
+            (Array(x), Array(y)) => x.len() == y.len() && x.iter().zip(y).all(|(x, y)| same(x, y)),
+            (Object(x), Object(y)) => {
+                x.len() == y.len() && x.iter().all(|(k, v)| y.get(k).is_some_and(|w| same(v, w)))
+            }
+            _ => a == b,
+        }
+    }
+    assert!(same(&report, &own), "report.json: {report}\nlibrary: {own}");
+
+    let shifts = &r.report.skin.section_3_6_shift_mm;
+    let hinges: Vec<_> = r
+        .link_model
+        .joints
+        .iter()
+        .filter(|e| e.axis.is_some())
+        .collect();
+    assert!(!hinges.is_empty());
+    for e in hinges {
+        assert_eq!(
+            e.diagnostics.centre_shift_on_skin_mm,
+            shifts.get(e.joint.name()).copied(),
+            "{}",
+            e.joint.name()
+        );
+    }
+
+    let right = ergohand::template::load_template(ergohand::anatomy::Side::Right).unwrap();
+    let err = ergohand::reconstruct::reconstruct(&subject, &right, &skin_opts, None)
+        .err()
+        .expect("a right template for a left hand is refused")
+        .to_string();
+    assert!(
+        err.contains(subj.to_str().unwrap()) && err.contains("template"),
+        "{err}"
+    );
+}

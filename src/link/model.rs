@@ -1041,22 +1041,7 @@ pub fn estimate_link_model(subject: &Subject) -> Result<LinkModel> {
 
 /// [`estimate_link_model`] with the choices of `opts`.
 pub fn estimate_link_model_with(subject: &Subject, opts: &LinkOptions) -> Result<LinkModel> {
-    let _ = opts;
-    let mut trials = BTreeMap::new();
-    let mut warnings = Vec::new();
-    for kind in TrialKind::ALL {
-        let mut t = subject.load_trial(kind)?;
-        // Absurd single samples out before any fit sees them (a robust per-marker test).
-        for (marker, n) in crate::mocap::plausibility::drop_outliers(&mut t) {
-            warnings.push(format!(
-                "{}: marker {marker}: {n} samples dropped as outliers (more than {} mm beyond \
-                 the marker's usual distance from its median position)",
-                t.source.display(),
-                crate::mocap::plausibility::OUTLIER_FLOOR_MM
-            ));
-        }
-        trials.insert(kind.key().to_string(), t);
-    }
+    let (trials, mut warnings) = subject.load_trials()?;
     let mut model =
         estimate_link_model_from_with(subject.hand, subject.reference_frame, &trials, opts)?;
     warnings.append(&mut model.warnings);

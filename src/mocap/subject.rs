@@ -366,6 +366,28 @@ impl Subject {
         }
         Ok(traj)
     }
+
+    /// Every trial of `[trials]` read once ([`Subject::load_trial`]), keyed by its `[trials]`
+    /// key, with absurd single samples dropped before any fit sees them
+    /// ([`crate::mocap::plausibility::drop_outliers`]), and a warning per marker that lost
+    /// samples, naming the file.
+    pub fn load_trials(&self) -> Result<(BTreeMap<String, Trajectories>, Vec<String>)> {
+        let mut trials = BTreeMap::new();
+        let mut warnings = Vec::new();
+        for kind in TrialKind::ALL {
+            let mut t = self.load_trial(kind)?;
+            for (marker, n) in crate::mocap::plausibility::drop_outliers(&mut t) {
+                warnings.push(format!(
+                    "{}: marker {marker}: {n} samples dropped as outliers (more than {} mm \
+                     beyond the marker's usual distance from its median position)",
+                    t.source.display(),
+                    crate::mocap::plausibility::OUTLIER_FLOOR_MM
+                ));
+            }
+            trials.insert(kind.key().to_string(), t);
+        }
+        Ok((trials, warnings))
+    }
 }
 
 /// 1-based line of byte `offset` in `text`.

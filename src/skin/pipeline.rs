@@ -16,7 +16,9 @@
 //!    the pair lengths: the template's pairs sit at the sections but are not their extremes
 //!    once the surface moves, so asking the pair for the caliper value leaves the skin too
 //!    thin or too thick);
-//! 7. section 3.6 is [`super::section_centre`], applied by the caller to the link model.
+//! 7. section 3.6 ([`super::section_centre`]): the link model's 1-DOF centres onto the final
+//!    skin's cross-sections, the link model the calipers measured with, returned in
+//!    [`SkinFit::link_model`].
 
 use super::correspondence::{
     fit_landmarks_with_points, DistanceConstraint, FitParams, FitResult, LandmarkConstraint,
@@ -157,6 +159,13 @@ pub struct SkinFit {
     pub caliper_residuals_mm: BTreeMap<String, f64>,
     /// Caliper rounds taken (re-fits with the pair lengths corrected by the caliper's reading).
     pub caliper_rounds: usize,
+    /// Section 3.6: the given link model with each 1-DOF centre moved towards the skin's
+    /// cross-section at its joint (the model the calipers measured with; see
+    /// [`LinkModel::with_skin_centres`]). `None` without a link model.
+    pub link_model: Option<LinkModel>,
+    /// Section 3.6: each 1-DOF centre's shift along its axis onto the skin's cross-section, mm
+    /// (of the posed template's skeleton when no link model was given).
+    pub section_shifts_mm: BTreeMap<String, f64>,
     /// Per joint-centre term: distance of the template's centre, carried by its ring of skin,
     /// from the subject's estimated centre, mm.
     pub centre_residuals_mm: BTreeMap<String, f64>,
@@ -435,32 +444,43 @@ pub fn fit_skin(
     // centres on the skin's cross-section), which moves with the skin.
     let edge_pairs = super::section_centre::edge_pairs(template)?;
     let measure_skeleton = link_model.unwrap_or(&posed_skeleton);
-    let caliper_error = |high: &TriMesh| -> BTreeMap<String, f64> {
-        let landmarks = landmarks_on_skin(high, &markers);
+    // Section 3.6 on a fitted skin: the link model with its hinges' centres on the skin's
+    // cross-sections (the section's point one cue of a hinge's level among others), and each
+    // hinge's shift along its axis onto the section.
+    let section_3_6 = |high: &TriMesh| -> (Option<LinkModel>, Skeleton, BTreeMap<String, f64>) {
         let (centred, shifts) = centre_on_cross_section(measure_skeleton, high, &edge_pairs);
-        // The joints `link_model.json` will hold: the link model takes the section's point as
-        // one cue of a hinge's level among others.
-        let centred = match full_link_model {
-            Some(m) => m.clone().with_skin_centres(&centred, &shifts).skeleton,
-            None => centred,
-        };
+        match full_link_model {
+            Some(m) => {
+                let m = m.clone().with_skin_centres(&centred, &shifts);
+                let sk = m.skeleton.clone();
+                (Some(m), sk, shifts)
+            }
+            None => (None, centred, shifts),
+        }
+    };
+    // What each caliper reads on a fitted skin minus its given value, measured with the joints
+    // `link_model.json` will hold (section 3.6 applied to that skin); with that section.
+    let caliper_error = |high: &TriMesh| {
+        let landmarks = landmarks_on_skin(high, &markers);
+        let section = section_3_6(high);
         // As a user rebuilds it from the file, which carries no fingertips (the last link's
         // direction then comes from its joint's frame), so that `validate` reads the same.
         let centred = skeleton_from_records(
-            &joint_records(&centred),
-            centred.side,
+            &joint_records(&section.1),
+            section.1.side,
             std::path::Path::new("link_model.json"),
         )
-        .unwrap_or(centred);
+        .unwrap_or_else(|_| section.1.clone());
         let measured = measure_dimensions(high, &centred, &landmarks);
-        distances
+        let errors: BTreeMap<String, f64> = distances
             .iter()
             .filter_map(|d| {
                 let dim = Dimension::from_name(&d.name)?;
                 let m = measured.get(&dim)?.as_ref().ok()?;
                 Some((d.name.clone(), m - dimensions[&dim]))
             })
-            .collect()
+            .collect();
+        (errors, section)
     };
     // What a round corrects of a dimension's miss: all of it on the palm, the part beyond the
     // slack on a finger.
@@ -476,7 +496,7 @@ pub fn fit_skin(
         let s: f64 = e.iter().map(|(n, x)| excess(n, *x).powi(2)).sum();
         (s / e.len().max(1) as f64).sqrt()
     };
-    let mut caliper_residuals_mm = caliper_error(&high);
+    let (mut caliper_residuals_mm, mut section) = caliper_error(&high);
     let mut targets = distances.clone();
     let mut best_targets = targets.clone();
     let mut caliper_rounds = 0;
@@ -495,7 +515,7 @@ pub fn fit_skin(
             }
         }
         let (f, l, h) = fit_once(&targets)?;
-        let e = caliper_error(&h);
+        let (e, round_section) = caliper_error(&h);
         // A dimension whose miss grew and changed sign was overshot (its pair moves the
         // section's extreme by more than itself): its step is halved from then on.
         for (d, g) in targets.iter().zip(&mut gains) {
@@ -510,6 +530,7 @@ pub fn fit_skin(
         // The best round is kept, not the last.
         if score(&current) < score(&caliper_residuals_mm) {
             (fit, low, high) = (f, l, h);
+            section = round_section;
             caliper_residuals_mm = current.clone();
             best_targets = targets.clone();
             caliper_rounds = round;
@@ -571,6 +592,8 @@ pub fn fit_skin(
             .collect(),
         caliper_residuals_mm,
         caliper_rounds,
+        link_model: section.0,
+        section_shifts_mm: section.2,
         posture,
         inverted_faces,
         degenerate_faces,
