@@ -40,6 +40,10 @@ enum Command {
         /// Output folder (created if missing).
         #[arg(long)]
         out: PathBuf,
+        /// A template folder to check and describe instead of the generic hand: its hands
+        /// with their spec (the folder's, or derived by the landmark rule) and pictures.
+        #[arg(long, value_name = "DIR")]
+        template: Option<PathBuf>,
     },
     /// Write a simulated subject folder with reference.ply and truth.json.
     Synth {
@@ -93,6 +97,11 @@ enum Command {
         /// or `none` (the default: the template's shape, as the paper).
         #[arg(long, value_name = "builtin|FILE|none")]
         shape_prior: Option<PathBuf>,
+        /// A template folder (right.glb and/or left.glb, optional template-spec.toml and
+        /// template.toml; see the README) instead of the embedded generic hand. The model
+        /// records it; pose, grasp and validate use the same one.
+        #[arg(long, value_name = "DIR")]
+        template: Option<PathBuf>,
     },
     /// Train a skin shape prior from subjects whose true surface is known: each SUBJECT_DIR
     /// holds subject.toml, reference.ply (a CT or simulated reference) and MODEL/ made by
@@ -162,6 +171,9 @@ enum Command {
         /// most 2 per core and one per subject to do).
         #[arg(long)]
         jobs: Option<usize>,
+        /// A template folder every subject is reconstructed from (as `reconstruct --template`).
+        #[arg(long, value_name = "DIR")]
+        template: Option<PathBuf>,
     },
 }
 
@@ -173,7 +185,10 @@ fn main() -> ExitCode {
     cli::logger::init(args.quiet, args.verbose);
     let result = match args.command {
         Command::Demo { out } => cli::demo(&out),
-        Command::Template { out } => cli::template(&out, &[Side::Right, Side::Left]).map(|_| ()),
+        Command::Template { out, template } => match template {
+            Some(dir) => cli::template::template_from(&dir, &out).map(|_| ()),
+            None => cli::template(&out, &[Side::Right, Side::Left]).map(|_| ()),
+        },
         Command::Synth {
             seed,
             out,
@@ -196,6 +211,7 @@ fn main() -> ExitCode {
             centre_weight,
             caliper_rounds,
             shape_prior,
+            template,
         } => cli::skin_options(fit_resolution, !no_template_posing, centre_weight)
             .and_then(|o| {
                 Ok(ergohand::skin::pipeline::SkinOptions {
@@ -204,7 +220,9 @@ fn main() -> ExitCode {
                     ..o
                 })
             })
-            .and_then(|opts| cli::reconstruct_with(&subject_dir, &out, &opts))
+            .and_then(|opts| {
+                cli::reconstruct::reconstruct_from(&subject_dir, &out, &opts, template.as_deref())
+            })
             .map(|_| ()),
         Command::ShapePrior {
             subject_dirs,
@@ -250,11 +268,13 @@ fn main() -> ExitCode {
             subjects_dir,
             out,
             jobs,
+            template,
         } => cli::batch(
             &subjects_dir,
             &out,
             &cli::batch::BatchOptions {
                 jobs,
+                template,
                 ..Default::default()
             },
         )

@@ -13,7 +13,7 @@ use crate::link::LinkModel;
 use crate::mocap::subject::{Subject, TrialKind};
 use crate::pose::{IndividualHand, WeightMethod};
 use crate::skin::pipeline::{fit_skin, FitResolution, SkinFit, SkinOptions};
-use crate::template::TemplateHand;
+use crate::template::{TemplateHand, TemplateSource};
 use crate::tet::{TemplateTet, TetReport};
 use serde::Serialize;
 use std::collections::BTreeMap;
@@ -49,6 +49,9 @@ pub struct ReconstructReport {
     /// [`inputs_fingerprint`] of the inputs the model was made from (an extension of the
     /// spec's outputs; `batch` compares it to decide what is up to date).
     pub inputs_fnv1a: String,
+    /// The template the model was made from (an extension: `pose`, `grasp` and `validate`
+    /// read the same one, [`crate::template::model_template`]).
+    pub template: TemplateSource,
 }
 
 /// The skin stage's part of `report.json`.
@@ -82,12 +85,22 @@ pub struct SkinSummary {
 }
 
 /// The content fingerprint ([`crate::io::fingerprint`]) of a reconstruction's inputs:
-/// `subject.toml`, every trial it names, and the skin options.
-pub fn inputs_fingerprint(subject: &Subject, opts: &SkinOptions) -> Result<String> {
+/// `subject.toml`, every trial it names, the skin options and the template (its folder's
+/// fingerprint).
+pub fn inputs_fingerprint(
+    subject: &Subject,
+    opts: &SkinOptions,
+    template: &TemplateSource,
+) -> Result<String> {
     let files: Vec<PathBuf> = std::iter::once(subject.toml_path())
         .chain(subject.trials.values().map(|p| subject.dir.join(p)))
         .collect();
-    crate::io::fingerprint::inputs_fingerprint(&files, &format!("{opts:?}"))
+    // The generic hand adds nothing, so that its fingerprints stay those of before.
+    let settings = match template {
+        TemplateSource::GenericHand => format!("{opts:?}"),
+        t => format!("{opts:?} {t:?}"),
+    };
+    crate::io::fingerprint::inputs_fingerprint(&files, &settings)
 }
 
 /// Reconstruct `subject`'s hand from `template` (of the subject's hand) with the skin options
@@ -163,7 +176,7 @@ fn stages<'p>(
     prepared_tet: impl FnOnce() -> Result<(Prepared<'p>, f64)>,
 ) -> Result<Reconstruction> {
     // Fingerprinted before anything is read, so the record never claims newer inputs.
-    let inputs_fnv1a = inputs_fingerprint(subject, opts)?;
+    let inputs_fnv1a = inputs_fingerprint(subject, opts, &template.source)?;
     let t0 = Instant::now();
     let (trials, trial_warnings) = subject.load_trials()?;
     let motion = crate::link::model::estimate_link_model_from(
@@ -237,6 +250,7 @@ fn stages<'p>(
         .collect(),
         tet: tet_report,
         inputs_fnv1a,
+        template: template.source.clone(),
         warnings,
         skin: skin_summary(&skin, opts),
     };

@@ -764,6 +764,24 @@ fn the_library_reconstruction_is_what_the_command_writes() {
         );
     }
 
+    // The same hand given as data (a template folder holding the shipped surface, subdivided
+    // as the embedded one is, its spec derived by the landmark rule) gives the same skin.
+    let folder = dir.path().join("T");
+    std::fs::create_dir(&folder).unwrap();
+    let glb = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/generic-hand/left.glb");
+    std::fs::copy(&glb, folder.join("left.glb")).unwrap();
+    std::fs::write(folder.join("template.toml"), "subdivisions = 2\n").unwrap();
+    let data = ergohand::template::load_folder_template(&folder, subject.hand).unwrap();
+    assert_eq!(data.spec, template.spec);
+    let r2 = ergohand::reconstruct::reconstruct(&subject, &data, &skin_opts, None).unwrap();
+    assert_eq!(r2.skin.high.vertices, r.skin.high.vertices);
+    assert_eq!(r2.link_model.to_json(), r.link_model.to_json());
+    assert!(matches!(
+        r2.report.template,
+        ergohand::template::TemplateSource::Folder { .. }
+    ));
+    assert_ne!(r2.report.inputs_fnv1a, r.report.inputs_fnv1a);
+
     let right = ergohand::template::load_template(ergohand::anatomy::Side::Right).unwrap();
     let err = ergohand::reconstruct::reconstruct(&subject, &right, &skin_opts, None)
         .err()
@@ -773,4 +791,146 @@ fn the_library_reconstruction_is_what_the_command_writes() {
         err.contains(subj.to_str().unwrap()) && err.contains("template"),
         "{err}"
     );
+}
+
+/// A template folder of another resolution: `template` describes it (spec derived by the
+/// landmark rule, written for review and read back unchanged), `reconstruct --template` builds
+/// the hand on it, `pose` and `validate` find it through the model folder, and a template folder
+/// changed after the model was made is refused naming report.json; a folder without the hand's
+/// surface or with a bad setting is an error naming the file.
+#[test]
+fn a_template_folder_is_used_end_to_end() {
+    let dir = tempfile::tempdir().unwrap();
+    let subj = dir.path().join("S");
+    let (s, tdir) = (subj.to_str().unwrap(), dir.path().join("T"));
+    let t = tdir.to_str().unwrap();
+    let gen = ergohand(&[
+        "synth",
+        "--seed",
+        "8",
+        "--preset",
+        "clean",
+        "--out",
+        s,
+        "--duration",
+        "8",
+        "-q",
+    ]);
+    assert!(gen.status.success(), "{}", stderr(&gen));
+    std::fs::create_dir(&tdir).unwrap();
+
+    // No surface for the subject's (right) hand: the error names the file to provide.
+    let out = dir.path().join("OUT");
+    let o = out.to_str().unwrap();
+    let r = ergohand(&["reconstruct", s, "--out", o, "--template", t]);
+    assert_eq!(r.status.code(), Some(1));
+    let line = error_line(&r);
+    assert!(line.contains("right.glb"), "{line}");
+    assert!(!out.exists());
+
+    let assets = Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/generic-hand");
+    std::fs::copy(assets.join("right.glb"), tdir.join("right.glb")).unwrap();
+    std::fs::write(tdir.join("template.toml"), "subdivisons = 1\n").unwrap();
+    let r = ergohand(&["reconstruct", s, "--out", o, "--template", t]);
+    assert_eq!(r.status.code(), Some(1));
+    let line = error_line(&r);
+    assert!(
+        line.contains("template.toml") && line.contains("subdivisons"),
+        "{line}"
+    );
+    std::fs::write(tdir.join("template.toml"), "subdivisions = 1\n").unwrap();
+
+    // The spec for review, read back as the folder's own: the same hand.
+    let review = dir.path().join("review");
+    let w = ergohand(&[
+        "template",
+        "--template",
+        t,
+        "--out",
+        review.to_str().unwrap(),
+        "-q",
+    ]);
+    assert!(w.status.success(), "{}", stderr(&w));
+    let derived =
+        ergohand::template::load_folder_template(&tdir, ergohand::anatomy::Side::Right).unwrap();
+    std::fs::copy(
+        review.join("template-spec.toml"),
+        tdir.join("template-spec.toml"),
+    )
+    .unwrap();
+    let given =
+        ergohand::template::load_folder_template(&tdir, ergohand::anatomy::Side::Right).unwrap();
+    assert_eq!(given.spec, derived.spec);
+    assert_eq!(given.mesh.n_faces(), 9_256);
+    assert!(review.join("template-right.png").is_file());
+
+    // The shipped shape prior belongs to the generic hand: asked for on another, refused.
+    let r = ergohand(&[
+        "reconstruct",
+        s,
+        "--out",
+        o,
+        "--template",
+        t,
+        "--shape-prior",
+        "builtin",
+    ]);
+    assert_eq!(r.status.code(), Some(1));
+    assert!(
+        error_line(&r).contains("--shape-prior"),
+        "{}",
+        error_line(&r)
+    );
+    assert!(!out.exists());
+
+    let r = ergohand(&["reconstruct", s, "--out", o, "--template", t, "-q"]);
+    assert!(r.status.success(), "{}", stderr(&r));
+    let skin = ergohand::io::obj::read_obj(&out.join("skin.obj"), Units::Millimetres).unwrap();
+    assert_eq!(
+        skin.faces, given.mesh.faces,
+        "homologous to the folder's template"
+    );
+    validate(&subj, &out, &out.join("rep"));
+    let metrics: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("rep/metrics.json")).unwrap())
+            .unwrap();
+    let regions = metrics["surface_regions"]["regions"].as_array().unwrap();
+    let n: u64 = regions
+        .iter()
+        .map(|r| r["vertices"].as_u64().unwrap())
+        .sum();
+    assert_eq!(n as usize, skin.n_vertices());
+    assert!(
+        metrics["surface"]["mean_mm"].as_f64().unwrap() < 2.0,
+        "{}",
+        metrics["surface"]
+    );
+    let fist = dir.path().join("fist.obj");
+    let p = ergohand(&[
+        "pose",
+        o,
+        "--pose",
+        "fist",
+        "--out",
+        fist.to_str().unwrap(),
+        "-q",
+    ]);
+    assert!(p.status.success(), "{}", stderr(&p));
+    let posed = ergohand::io::obj::read_obj(&fist, Units::Millimetres).unwrap();
+    assert_eq!(posed.faces, given.mesh.faces);
+
+    // The folder changes under the model: pose refuses, naming report.json and the folder.
+    std::fs::write(tdir.join("template.toml"), "subdivisions = 0\n").unwrap();
+    let p = ergohand(&[
+        "pose",
+        o,
+        "--pose",
+        "fist",
+        "--out",
+        fist.to_str().unwrap(),
+        "-q",
+    ]);
+    assert_eq!(p.status.code(), Some(1));
+    let line = error_line(&p);
+    assert!(line.contains("report.json") && line.contains(t), "{line}");
 }

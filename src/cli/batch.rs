@@ -58,6 +58,8 @@ pub struct BatchOptions {
     pub jobs: Option<usize>,
     /// The skin options every subject is reconstructed with.
     pub skin: SkinOptions,
+    /// The template folder every subject is reconstructed from (`None`: the generic hand).
+    pub template: Option<PathBuf>,
 }
 
 /// What became of one subject.
@@ -250,7 +252,12 @@ pub fn inputs(subject_dir: &Path) -> Result<Vec<PathBuf>> {
 /// so a subject folder replaced with preserved timestamps is redone. `false` whenever anything
 /// cannot be read (a missing output, an unreadable `subject.toml`, a missing trial), so such a
 /// subject is run and reports its own error.
-pub fn up_to_date(subject_dir: &Path, out: &Path, opts: &SkinOptions) -> bool {
+pub fn up_to_date(
+    subject_dir: &Path,
+    out: &Path,
+    opts: &SkinOptions,
+    template: Option<&Path>,
+) -> bool {
     if !newer_than_inputs(subject_dir, out) {
         return false;
     }
@@ -259,7 +266,7 @@ pub fn up_to_date(subject_dir: &Path, out: &Path, opts: &SkinOptions) -> bool {
         .and_then(|t| serde_json::from_str::<serde_json::Value>(&t).ok())
         .and_then(|v| v["inputs_fnv1a"].as_str().map(str::to_string));
     let now = Subject::load(subject_dir)
-        .and_then(|s| reconstruct_fingerprint(&s, opts))
+        .and_then(|s| reconstruct_fingerprint(&s, opts, template))
         .ok();
     matches!((recorded, now), (Some(r), Some(n)) if r == n)
 }
@@ -313,7 +320,7 @@ pub fn run(subjects_dir: &Path, out: &Path, opts: &BatchOptions) -> Result<Batch
     let mut todo = Vec::new();
     for (i, (name, dir)) in subjects.iter().enumerate() {
         let sout = out.join(name);
-        if up_to_date(dir, &sout, &opts.skin) {
+        if up_to_date(dir, &sout, &opts.skin, opts.template.as_deref()) {
             rows[i] = Some(SubjectOutcome {
                 subject: name.clone(),
                 status: Status::SkippedUpToDate,
@@ -374,7 +381,7 @@ pub fn run(subjects_dir: &Path, out: &Path, opts: &BatchOptions) -> Result<Batch
         sides
             .iter()
             .filter_map(|&side| {
-                let t = crate::template::load_template(side).ok()?;
+                let t = crate::template::load_template_from(opts.template.as_deref(), side).ok()?;
                 crate::tet::TemplateTet::prepare(&t, None).ok()
             })
             .collect()
@@ -398,7 +405,14 @@ pub fn run(subjects_dir: &Path, out: &Path, opts: &BatchOptions) -> Result<Batch
                 let result = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
                     pool.install(|| {
                         let shared = prepared_for(k);
-                        reconstruct_job(dir, &sout, &opts.skin, shared, Voice::Nested)
+                        reconstruct_job(
+                            dir,
+                            &sout,
+                            &opts.skin,
+                            opts.template.as_deref(),
+                            shared,
+                            Voice::Nested,
+                        )
                     })
                 }));
                 let seconds = t.elapsed().as_secs_f64();
@@ -564,10 +578,11 @@ mod tests {
         set_mtime(&s.join(SUBJECT_FILE), t0);
         set_mtime(&s.join("trials/reference.c3d"), t0);
         let opts = SkinOptions::default();
-        let up_to_date = |s: &Path, o: &Path| up_to_date(s, o, &opts);
+        let up_to_date = |s: &Path, o: &Path| up_to_date(s, o, &opts, None);
         // No outputs yet.
         assert!(!up_to_date(&s, &o));
-        let fingerprint = reconstruct_fingerprint(&Subject::load(&s).unwrap(), &opts).unwrap();
+        let fingerprint =
+            reconstruct_fingerprint(&Subject::load(&s).unwrap(), &opts, None).unwrap();
         for f in OUTPUTS {
             let text = if f == "report.json" {
                 format!("{{\"inputs_fnv1a\": \"{fingerprint}\"}}")
@@ -604,7 +619,7 @@ mod tests {
             centre_weight: 0.5,
             ..SkinOptions::default()
         };
-        assert!(!super::up_to_date(&s, &o, &full));
+        assert!(!super::up_to_date(&s, &o, &full, None));
         std::fs::remove_file(s.join("trials/reference.c3d")).unwrap();
         assert!(!up_to_date(&s, &o));
     }

@@ -41,6 +41,7 @@ pub fn demo(out: &Path) -> Result<()> {
         &model_dir,
         &SkinOptions::default(),
         None,
+        None,
         Voice::Nested,
     )?;
     let link_s = t2.elapsed().as_secs_f64();

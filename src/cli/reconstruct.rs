@@ -9,12 +9,15 @@ use crate::skin::pipeline::{FitResolution, SkinOptions};
 use crate::template;
 use std::path::Path;
 
-/// The content fingerprint of a reconstruction's inputs ([`crate::reconstruct::inputs_fingerprint`]).
+/// The content fingerprint of a reconstruction's inputs ([`crate::reconstruct::inputs_fingerprint`])
+/// with the template of the folder `template` (`None`: the generic hand).
 pub fn reconstruct_fingerprint(
     subject: &crate::mocap::subject::Subject,
     opts: &SkinOptions,
+    template: Option<&Path>,
 ) -> Result<String> {
-    crate::reconstruct::inputs_fingerprint(subject, opts)
+    let source = template::template_source(template, subject.hand)?;
+    crate::reconstruct::inputs_fingerprint(subject, opts, &source)
 }
 
 /// Skin options from the command line's values; an error naming `--centre-weight` unless it is
@@ -73,6 +76,17 @@ pub fn reconstruct_with(
     reconstruct_prepared(subject_dir, out, opts, None)
 }
 
+/// `ergohand reconstruct SUBJECT_DIR --out OUT --template DIR`: [`reconstruct_with`] from the
+/// template folder `template` ([`crate::template::folder`]; `None`: the generic hand).
+pub fn reconstruct_from(
+    subject_dir: &Path,
+    out: &Path,
+    opts: &SkinOptions,
+    template: Option<&Path>,
+) -> Result<crate::link::LinkModel> {
+    reconstruct_job(subject_dir, out, opts, template, None, Voice::Command)
+}
+
 /// [`reconstruct_with`] with the template's section 3.7 work done beforehand: a batch prepares
 /// one [`crate::tet::TemplateTet`] per hand and shares it. With `None` it is prepared here, on a
 /// second thread while the link model and the skin are fitted. A prepared template of the other
@@ -83,7 +97,7 @@ pub fn reconstruct_prepared(
     opts: &SkinOptions,
     prepared: Option<&crate::tet::TemplateTet>,
 ) -> Result<crate::link::LinkModel> {
-    reconstruct_job(subject_dir, out, opts, prepared, Voice::Command)
+    reconstruct_job(subject_dir, out, opts, None, prepared, Voice::Command)
 }
 
 /// [`reconstruct_prepared`], speaking with `voice`: the library's
@@ -92,6 +106,7 @@ pub(crate) fn reconstruct_job(
     subject_dir: &Path,
     out: &Path,
     opts: &SkinOptions,
+    template_dir: Option<&Path>,
     prepared: Option<&crate::tet::TemplateTet>,
     voice: Voice,
 ) -> Result<crate::link::LinkModel> {
@@ -101,12 +116,21 @@ pub(crate) fn reconstruct_job(
             .chain(subject.trials.values().map(|p| subject.dir.join(p))),
     );
     check_output_dir(out, &MODEL_FILES, "--out", &inputs)?;
-    let template = template::load_template(subject.hand)?;
+    if let Some(d) = template_dir {
+        let inputs = Inputs::files([
+            crate::template::folder::surface_file(d, subject.hand),
+            d.join(crate::template::folder::SPEC_FILE),
+            d.join(crate::template::folder::SETTINGS_FILE),
+        ]);
+        check_output_dir(out, &MODEL_FILES, "--out", &inputs)?;
+    }
+    let template = template::load_template_from(template_dir, subject.hand)?;
     log::log!(
         voice.info(),
-        "reconstruct {}: link model from 7 trials, skin, tetrahedral mesh (the template's is \
-         cached after the first run), skinned hand",
-        subject.name
+        "reconstruct {} from {}: link model from 7 trials, skin, tetrahedral mesh (the \
+         template's is cached after the first run), skinned hand",
+        subject.name,
+        template.source.describe()
     );
     let r = crate::reconstruct::reconstruct(&subject, &template, opts, prepared)?;
     for w in &r.report.warnings {

@@ -34,27 +34,7 @@ pub fn template(out: &Path, sides: &[Side]) -> Result<TemplateOutputs> {
                 "the {side} template spec derived now differs from the shipped one; the shipped one is used (run the tests)"
             );
         }
-        let obj_path = out.join(format!("template-{side}.obj"));
-        obj::write_obj(&obj_path, &hand.mesh, Units::Millimetres, None)?;
-        let glb = out.join(format!("template-{side}.glb"));
-        crate::io::gltf::write_glb(
-            &glb,
-            &crate::pose::skinned_template::skinned_scene(&format!("{side} template"), &hand),
-            Units::Metres,
-        )?;
-        files.push(glb);
-        let png = out.join(format!("template-{side}.png"));
-        template::picture::render_template_picture(&hand, &png)?;
-        log::info!(
-            "{side} template: {} vertices, {} faces, volume {:.0} cm³, {} landmarks, {} dimensions",
-            hand.mesh.n_vertices(),
-            hand.mesh.n_faces(),
-            hand.mesh.signed_volume() / 1000.0,
-            hand.spec.landmarks.len(),
-            hand.spec.dimensions.len()
-        );
-        files.push(obj_path);
-        files.push(png);
+        files.extend(write_hand(&hand, out)?);
         hands.push(hand);
     }
     log::info!(
@@ -63,4 +43,65 @@ pub fn template(out: &Path, sides: &[Side]) -> Result<TemplateOutputs> {
         t0.elapsed().as_secs_f64()
     );
     Ok(TemplateOutputs { files, hands })
+}
+
+/// `ergohand template --template DIR --out OUT`: a template folder's hands
+/// ([`crate::template::folder`]) as `template` writes the generic ones, with the spec the
+/// folder gives or, for a hand it does not describe, the one the landmark rule derives, written
+/// as `OUT/template-spec.toml` for review (copy it into DIR to keep it). An error names the
+/// folder when it holds neither `right.glb` nor `left.glb`.
+pub fn template_from(dir: &Path, out: &Path) -> Result<TemplateOutputs> {
+    let sides: Vec<Side> = [Side::Right, Side::Left]
+        .into_iter()
+        .filter(|&s| template::folder::surface_file(dir, s).is_file())
+        .collect();
+    if sides.is_empty() {
+        return Err(crate::error::Error::input(
+            dir,
+            "--template: no right.glb or left.glb in the folder (a skinned hand in metres with \
+             the WebXR joint names)",
+        ));
+    }
+    let hands: Vec<TemplateHand> = sides
+        .iter()
+        .map(|&s| template::load_folder_template(dir, s))
+        .collect::<Result<_>>()?;
+    create_dir(out)?;
+    let spec_path = out.join(template::folder::SPEC_FILE);
+    let specs: Vec<&template::HandSpec> = hands.iter().map(|h| &h.spec).collect();
+    atomic::write_bytes_atomic(
+        &spec_path,
+        template::folder::folder_spec_toml(&specs).as_bytes(),
+    )?;
+    let mut files = vec![spec_path];
+    for hand in &hands {
+        files.extend(write_hand(hand, out)?);
+    }
+    Ok(TemplateOutputs { files, hands })
+}
+
+/// A template hand's OBJ, skinned GLB and picture in `out`.
+fn write_hand(hand: &TemplateHand, out: &Path) -> Result<Vec<PathBuf>> {
+    let side = hand.side;
+    let obj_path = out.join(format!("template-{side}.obj"));
+    obj::write_obj(&obj_path, &hand.mesh, Units::Millimetres, None)?;
+    let glb = out.join(format!("template-{side}.glb"));
+    crate::io::gltf::write_glb(
+        &glb,
+        &crate::pose::skinned_template::skinned_scene(&format!("{side} template"), hand),
+        Units::Metres,
+    )?;
+    let png = out.join(format!("template-{side}.png"));
+    template::picture::render_template_picture(hand, &png)?;
+    log::info!(
+        "{side} template ({}): {} vertices, {} faces, volume {:.0} cm³, {} landmarks, {} \
+         dimensions",
+        hand.source.describe(),
+        hand.mesh.n_vertices(),
+        hand.mesh.n_faces(),
+        hand.mesh.signed_volume() / 1000.0,
+        hand.spec.landmarks.len(),
+        hand.spec.dimensions.len()
+    );
+    Ok(vec![glb, obj_path, png])
 }

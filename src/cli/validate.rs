@@ -138,7 +138,14 @@ pub fn validate_suite(dir: &Path, report: &Path) -> Result<()> {
         }
         let out = sdir.join("out");
         let t0 = Instant::now();
-        reconstruct_job(&sdir, &out, &SkinOptions::default(), None, Voice::Nested)?;
+        reconstruct_job(
+            &sdir,
+            &out,
+            &SkinOptions::default(),
+            None,
+            None,
+            Voice::Nested,
+        )?;
         let secs = t0.elapsed().as_secs_f64();
         let (v, _) = crate::validate::validate_subject(&sdir, &out, &out.join("report"))?;
         let (link, surface) = v.against_references(&sdir)?;

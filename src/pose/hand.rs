@@ -10,7 +10,7 @@ use crate::io::{obj, Units};
 use crate::skeleton::forward_kinematics::link_transforms;
 use crate::skeleton::record::{record_frame, JointRecord};
 use crate::skeleton::{JointFrame, Pose, Skeleton};
-use crate::template::{dominant_links, load_template, LinkWeights, TemplateHand};
+use crate::template::{dominant_links, LinkWeights, TemplateHand};
 use serde::Deserialize;
 use std::collections::BTreeMap;
 use std::path::Path;
@@ -113,7 +113,7 @@ impl IndividualHand {
         }
         let skin_path = out_dir.join("skin.obj");
         let skin = obj::read_obj(&skin_path, Units::Millimetres)?;
-        let template = load_template(side)?;
+        let template = crate::template::model_template(out_dir, side)?;
         if skin.n_vertices() != template.mesh.n_vertices() || skin.faces != template.mesh.faces {
             return Err(Error::input(
                 &skin_path,
@@ -181,6 +181,7 @@ pub fn tips_from_skin(sk: &Skeleton, skin: &TriMesh, weights: &LinkWeights) -> [
 mod tests {
     use super::*;
     use crate::skeleton::record::joint_records;
+    use crate::template::load_template;
 
     /// Writes the template as a `reconstruct` folder and loads it back: the skeleton's frames
     /// and centres are the template's, the tips lie just inside the template's own tips.

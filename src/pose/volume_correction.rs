@@ -377,7 +377,7 @@ impl VolumeRig {
 pub fn volume_rig(hand: &IndividualHand, model_dir: &Path) -> Result<VolumeRig> {
     let path = model_dir.join("tet.vtk");
     let tet = crate::io::vtk::read_vtk(&path, Units::Millimetres)?;
-    let template = crate::template::load_template(hand.side)?;
+    let template = crate::template::model_template(model_dir, hand.side)?;
     let prepared = crate::tet::TemplateTet::prepare(&template, None)?;
     if tet.n_nodes() != prepared.tet.n_nodes() || tet.tets != prepared.tet.tets {
         return Err(Error::input(

@@ -311,13 +311,13 @@ pub fn fit_skin(
             )))
         }
         Some(p) => {
-            warnings.push(format!(
-                "skin: the shape prior belongs to a template of {} vertices, this one has {}; \
-                 it was not used",
+            return Err(Error::invalid(format!(
+                "--shape-prior: the shape prior belongs to a template of {} vertices, this \
+                 template has {}; train one on it (`ergohand shape-prior`) or give \
+                 --shape-prior none",
                 p.vertices,
                 posed.n_vertices()
-            ));
-            None
+            )));
         }
         None => None,
     };

@@ -3,11 +3,13 @@
 //! its skin weights per link, its skeleton and its spec (landmarks, dimension vertex pairs,
 //! palm landmarks, joint centres).
 
+pub mod folder;
 pub mod generic_hand;
 pub mod landmark_rule;
 pub mod picture;
 pub mod spec;
 
+pub use folder::{load_folder_template, model_template, template_source, TemplateSource};
 pub use generic_hand::{load_base_hand, BaseHand, LinkWeights};
 pub use spec::{HandSpec, TemplateSpec};
 
@@ -39,6 +41,8 @@ pub struct TemplateHand {
     pub base: BaseHand,
     /// Landmarks, dimension pairs, palm landmarks and joint centres on `mesh`.
     pub spec: HandSpec,
+    /// Where it was read from.
+    pub source: TemplateSource,
 }
 
 /// The link that dominates each vertex's weights.
@@ -57,9 +61,16 @@ pub fn dominant_links(weights: &LinkWeights) -> Vec<usize> {
 /// The high-resolution mesh, weights and skeleton of `side`, without a spec.
 fn refine(side: Side) -> Result<(BaseHand, TriMesh, LinkWeights)> {
     let base = load_base_hand(side)?;
-    let sub = loop_subdivide_n(&base.mesh, SUBDIVISION_LEVELS);
+    let (mesh, weights) = refine_base(&base, SUBDIVISION_LEVELS);
+    Ok((base, mesh, weights))
+}
+
+/// `base`'s surface after `levels` Loop subdivisions, with its weights carried through the
+/// stencils (at most four links per vertex, renormalised).
+fn refine_base(base: &BaseHand, levels: usize) -> (TriMesh, LinkWeights) {
+    let sub = loop_subdivide_n(&base.mesh, levels);
     let weights = sub.apply_sparse(&base.weights, 4);
-    Ok((base, sub.mesh, weights))
+    (sub.mesh, weights)
 }
 
 /// Load the template of `side` with the spec shipped in the toolkit, checked against the mesh.
@@ -74,7 +85,16 @@ pub fn load_template(side: Side) -> Result<TemplateHand> {
         weights,
         base,
         spec,
+        source: TemplateSource::GenericHand,
     })
+}
+
+/// The template of `side` from the folder `dir` ([`folder`]), or the embedded generic hand.
+pub fn load_template_from(dir: Option<&Path>, side: Side) -> Result<TemplateHand> {
+    match dir {
+        Some(d) => load_folder_template(d, side),
+        None => load_template(side),
+    }
 }
 
 /// Derive the spec of both hands from the rule of [`landmark_rule`] (what the shipped file holds).

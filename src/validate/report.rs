@@ -17,7 +17,7 @@ use super::joint_fit::joint_fits;
 use super::joint_fit_plots::{joint_fit_figures, radius_figure};
 use super::link_accuracy::{compare, link_lengths, read_joints, read_truth};
 use super::subject_validation::{JointFitSummary, References, ReportFigures, SubjectValidation};
-use super::surface_regions::{hand_regions, surface_regions, SurfaceRegions};
+use super::surface_regions::{model_regions, surface_regions, SurfaceRegions};
 use crate::anatomy::landmark_names;
 use crate::error::{Error, Result};
 use crate::geometry::TriMesh;
@@ -158,7 +158,7 @@ pub fn validate_subject(
             surface_regions(
                 &m.skin_to_reference,
                 Some((&m.reference_to_skin, &m.reference_nearest_skin_vertex)),
-                &hand_regions(subject.hand)?,
+                &model_regions(model, subject.hand)?,
                 &skin_path,
             )
         })

@@ -248,10 +248,17 @@ fn keep_largest_patches(mut patches: Vec<Option<Patch>>, rings: &[Vec<usize>]) -
         .collect()
 }
 
-/// The regions of the template of `side`, for its vertices (and those of any skin homologous
-/// to it).
+/// The regions of the generic template of `side`, for its vertices (and those of any skin
+/// homologous to it).
 pub fn hand_regions(side: Side) -> Result<Vec<Region>> {
     let t = crate::template::load_template(side)?;
+    Ok(template_regions(&t.mesh, &t.weights, &t.skeleton))
+}
+
+/// The regions of the template a model folder was made from
+/// ([`crate::template::model_template`]), for the vertices of its skin.
+pub fn model_regions(model_dir: &std::path::Path, side: Side) -> Result<Vec<Region>> {
+    let t = crate::template::model_template(model_dir, side)?;
     Ok(template_regions(&t.mesh, &t.weights, &t.skeleton))
 }
 
