@@ -620,6 +620,20 @@ mod tests {
             ..SkinOptions::default()
         };
         assert!(!super::up_to_date(&s, &o, &full, None));
+        // Another template: redo; the same template folder with other content: redo again.
+        let t = d.path().join("T");
+        std::fs::create_dir(&t).unwrap();
+        std::fs::write(t.join("right.glb"), b"a").unwrap();
+        std::fs::write(t.join("left.glb"), b"a").unwrap();
+        assert!(!super::up_to_date(&s, &o, &opts, Some(&t)));
+        let subject = Subject::load(&s).unwrap();
+        let with_t = reconstruct_fingerprint(&subject, &opts, Some(&t)).unwrap();
+        std::fs::write(t.join("right.glb"), b"b").unwrap();
+        std::fs::write(t.join("left.glb"), b"b").unwrap();
+        assert_ne!(
+            with_t,
+            reconstruct_fingerprint(&subject, &opts, Some(&t)).unwrap()
+        );
         std::fs::remove_file(s.join("trials/reference.c3d")).unwrap();
         assert!(!up_to_date(&s, &o));
     }
