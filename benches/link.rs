@@ -3,7 +3,7 @@
 
 use criterion::{criterion_group, criterion_main, Criterion};
 use ergohand::anatomy::{palm_markers, Side};
-use ergohand::link::model::estimate_link_model_from;
+use ergohand::link::estimate::estimate_link_model_from;
 use ergohand::link::registration::register_parent;
 use ergohand::synth::{simulate, Preset, SynthOptions};
 use std::hint::black_box;

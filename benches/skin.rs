@@ -114,7 +114,7 @@ fn skin_stage(c: &mut Criterion) {
     })
     .unwrap();
     let t = load_template(s.subject.hand).unwrap();
-    let model = ergohand::link::model::estimate_link_model_from(
+    let model = ergohand::link::estimate::estimate_link_model_from(
         s.subject.hand,
         s.subject.reference_frame,
         &s.trials,

@@ -20,7 +20,7 @@
 //! subjects given (median of the per-joint errors over all of them).
 
 use ergohand::anatomy::Joint;
-use ergohand::link::model::{estimate_link_model_with, LinkOptions};
+use ergohand::link::estimate::{estimate_link_model_with, LinkOptions};
 use ergohand::mocap::subject::Subject;
 use ergohand::skeleton::record::joint_records;
 use ergohand::synth::capture::ErrorModel;

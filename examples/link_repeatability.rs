@@ -25,7 +25,8 @@
 //! stdout).
 
 use ergohand::anatomy::{Finger, Joint, Side};
-use ergohand::link::model::{estimate_link_model_from, LinkModel};
+use ergohand::link::estimate::estimate_link_model_from;
+use ergohand::link::LinkModel;
 use ergohand::mocap::trajectories::Trajectories;
 use ergohand::rng::Rng;
 use ergohand::synth::capture::{simulate_trial, ErrorModel, MarkerDef, Recording};
@@ -332,7 +333,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
          (PIP-DIP) mm on a real subject over five recordings of the calibration motions; the goal \
          is 0.3 mm. The rows `model (...)` are the link model as \
          `reconstruct` writes it: the rule's estimator, each centre carried to the palm through \
-         the proximal links' held reference poses (`link::model::held_reference_pose`: the mean \
+         the proximal links' held reference poses (`link::estimate::held_reference_pose`: the mean \
          relative pose over the held reference posture at the start of the trial, instead of \
          the single reference frame). The other rows are each estimator's centre as \
          `alternatives` stores it, in its parent link's pose at the reference frame alone: \

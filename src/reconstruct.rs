@@ -179,7 +179,7 @@ fn stages<'p>(
     let inputs_fnv1a = inputs_fingerprint(subject, opts, &template.source)?;
     let t0 = Instant::now();
     let (trials, trial_warnings) = subject.load_trials()?;
-    let motion = crate::link::model::estimate_link_model_from(
+    let motion = crate::link::estimate::estimate_link_model_from(
         subject.hand,
         subject.reference_frame,
         &trials,

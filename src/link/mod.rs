@@ -15,13 +15,18 @@
 //! * [`sta_model`]: SCoRE with a linear model of the clusters' soft-tissue artefact in the joint
 //!   angles (Camomilla et al. 2013, Cappello et al. 1997/2005), beyond the paper.
 //! * [`registration`]: equation 1, the per-frame registration of the parent's markers.
-//! * [`model`]: the whole link model of a subject from its trials, with diagnostics.
+//! * [`estimate`]: the whole link model of a subject from its trials, with diagnostics.
+//! * [`level_cues`]: a hinge's level along its axis weighted over several cues.
+//! * [`model`]: the link model as data, and `link_model.json`.
 
 pub mod axis_fit;
+pub mod estimate;
 pub mod functional;
+pub mod level_cues;
 pub mod model;
 pub mod registration;
 pub mod sphere_fit;
 pub mod sta_model;
 
-pub use model::{estimate_link_model, JointEstimate, LinkModel};
+pub use estimate::estimate_link_model;
+pub use model::{JointEstimate, LinkModel};

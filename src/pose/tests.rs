@@ -61,7 +61,7 @@ fn subject_and_true_hand(
 /// The hand `reconstruct` makes of a simulated subject: link model from its trials, skin fitted
 /// to its reference trial, section 3.6's centres.
 fn reconstructed_hand(s: &crate::synth::SyntheticSubject, method: WeightMethod) -> IndividualHand {
-    let model = crate::link::model::estimate_link_model_from(
+    let model = crate::link::estimate::estimate_link_model_from(
         s.subject.hand,
         s.subject.reference_frame,
         &s.trials,

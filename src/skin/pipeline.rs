@@ -732,7 +732,7 @@ mod tests {
     ) -> (crate::synth::SyntheticSubject, TemplateHand, LinkModel) {
         let s = simulate_with(&opts, &err).unwrap();
         let t = load_template(s.subject.hand).unwrap();
-        let model = crate::link::model::estimate_link_model_from(
+        let model = crate::link::estimate::estimate_link_model_from(
             s.subject.hand,
             s.subject.reference_frame,
             &s.trials,

@@ -5,14 +5,14 @@
 //!
 //! `link_model.json` keeps the centres, frames and the radius statistics, not the trajectories,
 //! so they are computed again here from the subject's trials with the link module's own public
-//! steps: the marker sets of [`crate::link::model::marker_sets`] and the per-frame registration
+//! steps: the marker sets of [`crate::link::estimate::marker_sets`] and the per-frame registration
 //! of equation 1 ([`crate::link::registration::register_parent`]). Validation reads the
 //! pipeline's inputs and outputs; the pipeline never calls it.
 
 use crate::anatomy::{palm_markers, Finger, Joint};
 use crate::error::{Error, Result};
 use crate::geometry::{absolute_orientation, Point, Vec3};
-use crate::link::model::marker_sets;
+use crate::link::estimate::marker_sets;
 use crate::link::registration::register_parent;
 use crate::mocap::subject::{Subject, TrialKind};
 use crate::mocap::trajectories::Trajectories;
@@ -233,7 +233,7 @@ fn joint_fit(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::link::model::estimate_link_model_from;
+    use crate::link::estimate::estimate_link_model_from;
     use crate::synth::{simulate, Preset, SynthOptions};
 
     /// Recomputed from the trials, the per-marker radius statistics are the ones the link

@@ -471,10 +471,10 @@ pub fn link_length_table(v: &SubjectValidation) -> Table {
 }
 
 /// A link length's bootstrap SD, flagged above the link model's warning level
-/// ([`crate::link::model::MAX_LENGTH_SD_MM`]); a dash when the model has none.
+/// ([`crate::link::estimate::MAX_LENGTH_SD_MM`]); a dash when the model has none.
 fn length_sd_cell(v: &SubjectValidation, key: &str) -> Cell {
     match v.link_length_sd_mm.get(key) {
-        Some(&sd) => Cell::flagged(f2(sd), sd > crate::link::model::MAX_LENGTH_SD_MM),
+        Some(&sd) => Cell::flagged(f2(sd), sd > crate::link::estimate::MAX_LENGTH_SD_MM),
         None => Cell::new("–"),
     }
 }
