@@ -7,11 +7,11 @@
 use criterion::{criterion_group, criterion_main, Criterion};
 use ergohand::anatomy::Side;
 use ergohand::geometry::Point;
-use ergohand::grasp::autograsp::{
-    autograsp, grasp_plan, placement_search, root_for, AutograspOptions,
-};
+use ergohand::grasp::autograsp::{autograsp, root_for, AutograspOptions};
 use ergohand::grasp::contact::{contacts, vertex_areas, ContactOptions, PartShape};
 use ergohand::grasp::parts::{mesh_sdf, Part};
+use ergohand::grasp::placement::placement_search;
+use ergohand::grasp::plan::grasp_plan;
 use ergohand::grasp::quality::{grasp_epsilon, grasp_quality};
 use ergohand::grasp::scene::{pose_from, GraspType};
 use ergohand::grasp::{evaluate, PosableHand, SkinnedHand};

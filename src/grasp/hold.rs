@@ -359,10 +359,9 @@ mod tests {
     #[test]
     fn hand_power_grasp_of_the_cylinder_holds_and_a_fingertip_touch_does_not() {
         use crate::anatomy::{Finger, Joint, Side};
-        use crate::grasp::autograsp::{
-            autograsp, grasp_plan, root_for, squeeze, AutograspOptions, SQUEEZE_MM,
-        };
+        use crate::grasp::autograsp::{autograsp, root_for, squeeze, AutograspOptions, SQUEEZE_MM};
         use crate::grasp::contact::{contacts, vertex_areas};
+        use crate::grasp::plan::grasp_plan;
         use crate::grasp::scene::GraspType;
         use crate::grasp::SkinnedHand;
         use crate::skeleton::forward_kinematics::link_transforms;

@@ -16,6 +16,8 @@ pub mod contact;
 pub mod hand;
 pub mod hold;
 pub mod parts;
+pub mod placement;
+pub mod plan;
 pub mod quality;
 pub mod scene;
 
@@ -25,8 +27,9 @@ use crate::anatomy::Joint;
 use crate::error::{Error, Result};
 use crate::geometry::{Point, TriMesh};
 use crate::io::Units;
-use autograsp::{autograsp, grasp_plan, root_for, AutograspOptions};
+use autograsp::{autograsp, root_for, AutograspOptions};
 use contact::{contacts, vertex_areas, ContactOptions, ContactSet, PartShape};
+use plan::grasp_plan;
 use scene::{Approach, Scene};
 use serde::Serialize;
 use std::collections::BTreeMap;
@@ -224,7 +227,7 @@ fn grasp_from(
     scene: &Scene,
     hand: &dyn PosableHand,
     part: &PartShape,
-    plan: &autograsp::GraspPlan,
+    plan: &plan::GraspPlan,
     approach: &nalgebra::Isometry3<f64>,
     areas: &[f64],
 ) -> Result<Attempt> {
@@ -302,7 +305,7 @@ pub fn run_scene(scene: &Scene, hand: &dyn PosableHand) -> Result<GraspOutcome> 
     let approaches = match &scene.approach {
         Approach::Given(a) => vec![scene.part_pose * a],
         Approach::Auto => {
-            let r = autograsp::placement_search(
+            let r = placement::placement_search(
                 hand,
                 &part,
                 &plan,
@@ -640,7 +643,7 @@ mod tests {
         s.grasp = scene::GraspType::Lateral;
         s.candidates = 100;
         let e = run_scene(&s, hand()).err().unwrap().to_string();
-        let opening = autograsp::press_travel(hand(), &autograsp::grasp_plan(s.grasp))
+        let opening = autograsp::press_travel(hand(), &plan::grasp_plan(s.grasp))
             .unwrap()
             .norm();
         assert!(opening < 38.0, "{opening}");

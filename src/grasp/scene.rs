@@ -23,7 +23,7 @@
 //! time_limit_s = 15              #   and a bound on its time
 //! ```
 //!
-//! The hand's grasp frame ([`super::autograsp::grasp_frame`]) has its origin on the palm
+//! The hand's grasp frame ([`super::plan::grasp_frame`]) has its origin on the palm
 //! surface, z out of the palm (palmar), y toward the fingers. Unknown keys are errors; every
 //! error names the file and the key.
 

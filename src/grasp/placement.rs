@@ -1,0 +1,337 @@
+//! The placement search for `approach = "auto"`: wrist poses sampled around the part, screened,
+//! closed by [`super::autograsp`] and scored by the grasp quality, the best kept (after the
+//! optimisation-based grasp posture generation of Endo et al.: sample, close, score, keep the
+//! best).
+
+use super::autograsp::{autograsp, pad_point, pose_at, press_travel, squeeze, AutograspOptions};
+use super::contact::PartShape;
+use super::hand::PosableHand;
+use super::plan::{grasp_frame, GraspPlan};
+use crate::geometry::{Point, Vec3};
+use crate::rng::Rng;
+use nalgebra::{Isometry3, Rotation3, Translation3, UnitQuaternion};
+
+/// A candidate placement: the grasp frame looks along `-dir` at the part from just outside its
+/// surface, rolled by `roll` about its z axis.
+pub fn placement(part: &PartShape, dir: &Vec3, roll: f64, gap_mm: f64) -> Option<Isometry3<f64>> {
+    use parry3d_f64::query::{Ray, RayCast};
+    let d = dir.try_normalize(1e-12)?;
+    let far = part.centre_of_mass + d * (part.max_radius + 50.0);
+    let ray = Ray::new(
+        super::contact::pv(&far),
+        super::contact::pv(&Point::from(-d)),
+    );
+    let toi = part.shape.cast_local_ray(&ray, f64::MAX, false)?;
+    let hit = far - d * toi;
+    let z = -d;
+    let helper = if z.z.abs() < 0.9 {
+        Vec3::z()
+    } else {
+        Vec3::x()
+    };
+    let x0 = helper.cross(&z).normalize();
+    let y0 = z.cross(&x0);
+    let (s, c) = roll.sin_cos();
+    let x = x0 * c + y0 * s;
+    let y = z.cross(&x);
+    let rot = Rotation3::from_basis_unchecked(&[x, y, z]);
+    Some(Isometry3::from_parts(
+        Translation3::from((hit + d * gap_mm).coords),
+        UnitQuaternion::from_rotation_matrix(&rot),
+    ))
+}
+
+/// A candidate placement of a precision grasp: the grasp frame oriented as by [`placement`]
+/// (looking along `-dir`, rolled by `roll`) and moved so that the plan's [`pad_point`] `pad`
+/// (grasp frame) lies halfway through the part along `dir` through its centre of mass, where
+/// the pads closing from either side meet it (for a pen seen from its side: on its axis).
+pub fn pad_placement(
+    part: &PartShape,
+    dir: &Vec3,
+    roll: f64,
+    pad: &Vec3,
+) -> Option<Isometry3<f64>> {
+    use parry3d_f64::query::{Ray, RayCast};
+    let entry = placement(part, dir, roll, 0.0)?;
+    let d = dir.try_normalize(1e-12)?;
+    let far = part.centre_of_mass - d * (part.max_radius + 50.0);
+    let ray = Ray::new(
+        super::contact::pv(&far),
+        super::contact::pv(&Point::from(d)),
+    );
+    let exit = far + d * part.shape.cast_local_ray(&ray, f64::MAX, false)?;
+    let centre = Point::from((entry.translation.vector + exit.coords) / 2.0);
+    Some(Isometry3::from_parts(
+        Translation3::from(centre.coords - entry.rotation * pad),
+        entry.rotation,
+    ))
+}
+
+/// A candidate placement of a grasp with a [`GraspPlan::support`]: the grasp frame oriented
+/// as by [`placement`] (looking along `-dir`, rolled by `roll`) and moved so that the plan's
+/// [`pad_point`] `pad` (on the support's skin, grasp frame) lies on the part's surface where a
+/// line through the centre of mass along the pads' closing direction `press` (grasp frame)
+/// leaves it: the part rests on the support, and the thumb closing along `press` pushes it
+/// through its centre of mass onto the support (no torque about the contacts from the squeeze).
+pub fn support_placement(
+    part: &PartShape,
+    dir: &Vec3,
+    roll: f64,
+    pad: &Vec3,
+    press: &Vec3,
+) -> Option<Isometry3<f64>> {
+    use parry3d_f64::query::{Ray, RayCast};
+    let rot = placement(part, dir, roll, 0.0)?.rotation;
+    let d = (rot * press).try_normalize(1e-12)?;
+    // From beyond the part on the far side of the support, back toward it: the first hit is
+    // the face the support touches.
+    let far = part.centre_of_mass + d * (part.max_radius + 50.0);
+    let ray = Ray::new(
+        super::contact::pv(&far),
+        super::contact::pv(&Point::from(-d)),
+    );
+    let hit = far - d * part.shape.cast_local_ray(&ray, f64::MAX, false)?;
+    Some(Isometry3::from_parts(
+        Translation3::from(hit.coords - rot * pad),
+        rot,
+    ))
+}
+
+/// Result of [`placement_search`].
+#[derive(Clone, Debug)]
+pub struct PlacementResult {
+    /// Best approach (grasp frame in the part's world frame).
+    pub approach: Isometry3<f64>,
+    /// How many of the plan's [`GraspPlan::pads`] touch the part in it (full evaluation).
+    pub pads_touching: usize,
+    /// Its epsilon (full evaluation).
+    pub epsilon: f64,
+    /// Its volume quality.
+    pub volume: f64,
+    /// Candidates screened (not rejected, within the time bound).
+    pub evaluated: usize,
+    /// The other finalists' approaches, best first (for a caller that rejects the best, e.g.
+    /// by the hold test).
+    pub runners_up: Vec<Isometry3<f64>>,
+}
+
+/// Skin vertex stride of the placement search's screening (closing checks and contacts).
+pub const SCREEN_STRIDE: usize = 4;
+
+/// Friction cone edges of the screening quality (a subset of the full cone's edges, so its
+/// epsilon is a lower bound of the full one's).
+pub const SCREEN_CONE_EDGES: usize = 4;
+
+/// Screened candidates whose full evaluation decides (taken down the screening ranking,
+/// skipping those the full autograsp refuses).
+pub const FINALISTS: usize = 6;
+
+/// Whether any skin vertex at the preshape of `plan` from `root` lies inside the part deeper
+/// than the broad phase's band (every vertex, by the voxel grid alone: the autograsp would
+/// refuse such a start).
+fn starts_deep_inside(
+    hand: &dyn PosableHand,
+    part: &PartShape,
+    plan: &GraspPlan,
+    root: Isometry3<f64>,
+    buf: &mut Vec<Point>,
+) -> bool {
+    hand.pose_vertices(&pose_at(plan, &[0.0; 16], root), buf);
+    part.closed
+        && buf
+            .iter()
+            .any(|p| part.grid.zone(p) == super::broad::Zone::Inside)
+}
+
+/// Quality of the hand closed by `opts` from `root`: (pads of the plan touching, epsilon,
+/// volume, contact area), the contacts measured on every `stride`-th skin vertex (each standing
+/// for `stride` vertices' area) and the friction cones linearised with `edges` edges; epsilon
+/// and volume of the pads' contacts alone for a plan with [`GraspPlan::pads`]; with `squeezed`,
+/// measured after the [`squeeze`], as the scene is. `None` when the autograsp refuses the
+/// start.
+#[allow(clippy::too_many_arguments)]
+fn closed_quality(
+    hand: &dyn PosableHand,
+    part: &PartShape,
+    plan: &GraspPlan,
+    mu: f64,
+    root: Isometry3<f64>,
+    opts: &AutograspOptions,
+    sample: &(Vec<usize>, Vec<usize>, Vec<f64>),
+    edges: usize,
+    squeezed: bool,
+) -> Option<(usize, f64, f64, f64)> {
+    let g = autograsp(hand, part, plan, root, opts).ok()?;
+    let pose = if squeezed {
+        squeeze(hand, part, plan, &g, opts).0
+    } else {
+        g.pose
+    };
+    let mut pts = Vec::new();
+    hand.pose_vertices(&pose, &mut pts);
+    let (idx, links, areas) = sample;
+    let pts: Vec<Point> = idx.iter().map(|&i| pts[i]).collect();
+    let c = super::contact::contacts(part, &pts, links, areas, &opts.contact);
+    // A precision grasp is scored by its pads alone: the other links (tucked fingers, palm)
+    // are not closed onto the part and press it with no controlled force, and their contacts
+    // far along a pen's length inflated epsilon for grasps whose pads did not oppose.
+    let held: Vec<super::contact::Contact> = c
+        .contacts
+        .iter()
+        .filter(|k| plan.pads.is_empty() || plan.pads.iter().any(|l| l.index() == k.link_index))
+        .cloned()
+        .collect();
+    let w = super::quality::cone_wrenches(&held, mu, &part.centre_of_mass, part.max_radius, edges);
+    let q = super::quality::quality(&w);
+    let pads = plan.pads.iter().filter(|l| c.touches(l.index())).count();
+    Some((pads, q.epsilon, q.volume, c.total_area_mm2()))
+}
+
+/// Every `stride`-th skin vertex: (indices, links, areas scaled to stand for the skipped).
+fn skin_sample(hand: &dyn PosableHand, stride: usize) -> (Vec<usize>, Vec<usize>, Vec<f64>) {
+    let areas = super::contact::vertex_areas(hand.rest_mesh());
+    let idx: Vec<usize> = (0..areas.len()).step_by(stride.max(1)).collect();
+    let links = idx.iter().map(|&i| hand.vertex_link()[i]).collect();
+    let a = idx.iter().map(|&i| areas[i] * stride as f64).collect();
+    (idx, links, a)
+}
+
+/// Placement search: `candidates` seeded random placements (directions uniform on the sphere,
+/// rolls uniform), screened cheaply, the best few evaluated in full; the result is the best of
+/// the full evaluations by (pads touching, epsilon, volume, contact area).
+///
+/// A plan without [`GraspPlan::pads`] (power) is placed with the palm 3 mm off the part
+/// ([`placement`]); a precision plan with its [`pad_point`] in the part ([`pad_placement`]); a
+/// plan with a [`GraspPlan::support`] (lateral) with the part resting on the support where the
+/// thumb's closing line through the centre of mass leaves it ([`support_placement`]). Candidates
+/// of a plan with pads rank first by how many of its pads touch the part, and
+/// its epsilon is that of the pads' contacts: a precision grasp is one held by the pads
+/// (Cutkosky 1989), and epsilon of every contact preferred a tripod held by the thenar and one
+/// fingertip, which is force closure but drops the pen.
+///
+/// Screening (parallel, stops early at `time_limit_s`): a placement where a skin vertex is deep
+/// inside the part at the preshape is rejected by the voxel grid (every vertex); the others are
+/// closed by a coarse autograsp (steps of 0.1, every [`SCREEN_STRIDE`]-th vertex) and scored
+/// with contacts on the same vertices and friction cones of [`SCREEN_CONE_EDGES`] edges (a lower
+/// bound of the full epsilon). The [`FINALISTS`] best are closed by the default autograsp,
+/// squeezed ([`squeeze`]) and scored by the full model (every vertex,
+/// [`super::quality::CONE_EDGES`] edges), as the scene evaluation will; a candidate whose full
+/// autograsp refuses the start (a vertex 2 to 3 mm inside, which the grid and the thinned
+/// check can miss) is replaced by the next. The finalists come back ranked
+/// ([`PlacementResult::runners_up`]).
+/// Deterministic for a seed when the time bound is not reached.
+#[allow(clippy::too_many_arguments)]
+pub fn placement_search(
+    hand: &dyn PosableHand,
+    part: &PartShape,
+    plan: &GraspPlan,
+    mu: f64,
+    seed: u64,
+    candidates: usize,
+    time_limit_s: f64,
+) -> Option<PlacementResult> {
+    use rayon::prelude::*;
+    let mut rng = Rng::new(seed).fork("placement");
+    let cand: Vec<(Vec3, f64)> = (0..candidates)
+        .map(|_| {
+            (
+                rng.unit_vector(),
+                rng.range(0.0, 2.0 * std::f64::consts::PI),
+            )
+        })
+        .collect();
+    let gf = grasp_frame(hand);
+    let coarse = AutograspOptions {
+        step: 0.1,
+        min_step: 0.05,
+        max_depth_mm: 2.0,
+        stride: SCREEN_STRIDE,
+        ..AutograspOptions::default()
+    };
+    // A bar only where status lines are logged (the command line without --quiet).
+    let bar = if log::log_enabled!(log::Level::Info) {
+        indicatif::ProgressBar::new(candidates as u64)
+    } else {
+        indicatif::ProgressBar::hidden()
+    };
+    let started = std::time::Instant::now();
+    let coarse_sample = skin_sample(hand, SCREEN_STRIDE);
+    // (candidate, pads touching, epsilon, volume, contact area)
+    type Score = (usize, usize, f64, f64, f64);
+    let pad = pad_point(hand, plan);
+    let press = press_travel(hand, plan);
+    let approach_of = |i: usize| match (&pad, &press) {
+        (Some(p), Some(n)) => support_placement(part, &cand[i].0, cand[i].1, p, n),
+        (Some(p), None) => pad_placement(part, &cand[i].0, cand[i].1, p),
+        (None, _) => placement(part, &cand[i].0, cand[i].1, 3.0),
+    };
+    let root_of = |i: usize| Some(approach_of(i)? * gf.inverse());
+    let score = |i: usize, root, opts: &AutograspOptions, sample: &_, edges, squeezed| {
+        let (n, e, v, a) =
+            closed_quality(hand, part, plan, mu, root, opts, sample, edges, squeezed)?;
+        Some((i, n, e, v, a))
+    };
+    let scored: Vec<Option<Score>> = cand
+        .par_iter()
+        .enumerate()
+        .map_init(Vec::new, |buf, (i, _)| {
+            bar.inc(1);
+            if started.elapsed().as_secs_f64() > time_limit_s {
+                return None;
+            }
+            let root = root_of(i)?;
+            if starts_deep_inside(hand, part, plan, root, buf) {
+                return None;
+            }
+            score(i, root, &coarse, &coarse_sample, SCREEN_CONE_EDGES, false)
+        })
+        .collect();
+    bar.finish_and_clear();
+    let better = |a: &Score, b: &Score| {
+        a.1.cmp(&b.1)
+            .then(a.2.total_cmp(&b.2))
+            .then(a.3.total_cmp(&b.3))
+            .then(a.4.total_cmp(&b.4))
+            .then(b.0.cmp(&a.0))
+    };
+    let evaluated = scored.iter().filter(|s| s.is_some()).count();
+    let mut ranked: Vec<Score> = scored.into_iter().flatten().collect();
+    ranked.sort_by(|a, b| better(b, a));
+    let full_sample = skin_sample(hand, 1);
+    let full = AutograspOptions::default();
+    // Down the ranking, FINALISTS at a time, until FINALISTS full evaluations succeed.
+    let mut finals: Vec<Score> = Vec::new();
+    for chunk in ranked.chunks(FINALISTS) {
+        if finals.len() >= FINALISTS {
+            break;
+        }
+        finals.extend(
+            chunk
+                .par_iter()
+                .filter_map(|&(i, ..)| {
+                    score(
+                        i,
+                        root_of(i)?,
+                        &full,
+                        &full_sample,
+                        super::quality::CONE_EDGES,
+                        true,
+                    )
+                })
+                .collect::<Vec<Score>>(),
+        );
+    }
+    finals.sort_by(|a, b| better(b, a));
+    let best = *finals.first()?;
+    Some(PlacementResult {
+        approach: approach_of(best.0)?,
+        pads_touching: best.1,
+        epsilon: best.2,
+        volume: best.3,
+        evaluated,
+        runners_up: finals[1..]
+            .iter()
+            .filter_map(|s| approach_of(s.0))
+            .collect(),
+    })
+}
