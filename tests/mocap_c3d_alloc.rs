@@ -2,8 +2,9 @@
 //!
 //! Its own test binary because it installs a counting global allocator: the largest single
 //! allocation requested while `read_c3d_bytes` runs on each mutant is compared with the mutant's
-//! length. (`c3dio` sizes its grids from header and parameter counts; an unchecked count would
-//! show here as a request of megabytes to gigabytes for a file of a few kilobytes.)
+//! length. (The reader sizes its tracks and parameter copies from header and parameter counts;
+//! an unchecked count would show here as a request of megabytes to gigabytes for a file of a few
+//! kilobytes.)
 
 use ergohand::geometry::Point;
 use ergohand::mocap::c3d::{read_c3d_bytes, write_c3d};
@@ -119,6 +120,6 @@ fn mutants_allocate_in_proportion_to_their_size() {
             b.len()
         );
     }
-    // The reads did allocate (the grids exist), so the bound was exercised.
+    // The reads did allocate (the tracks exist), so the bound was exercised.
     assert!(worst.0 > 0);
 }
