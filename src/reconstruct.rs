@@ -214,6 +214,13 @@ fn stages<'p>(
     let t2 = Instant::now();
     let (template_tet, t_prepare) = prepared_tet()?;
     let (tet, tet_report) = template_tet.deform(&skin.high)?;
+    // What `pose` reuses instead of preparing the template's tet stage again: the node weights
+    // of the template's tet mesh, stored in the tet cache beside the mesh itself.
+    let nodes = template_tet.tet.n_nodes();
+    if crate::pose::cached_tet_node_weights(template, nodes).is_none() {
+        let w = crate::pose::tet_node_weights(template, &template_tet)?;
+        crate::pose::store_tet_node_weights(template, &w);
+    }
     let t_tet = t2.elapsed().as_secs_f64();
     // An inverted element is a suspect model: said, never only counted.
     let inverted_tets = tet.inverted_count();

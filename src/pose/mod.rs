@@ -48,7 +48,9 @@ pub use contact_resolve::{
     resolve_finger_contacts, resolve_finger_contacts_on, ResolveOptions, Resolved,
 };
 pub use hand::IndividualHand;
-pub use harmonic_weights::{pose_tet_nodes, tet_node_weights};
+pub use harmonic_weights::{
+    cached_tet_node_weights, pose_tet_nodes, store_tet_node_weights, tet_node_weights,
+};
 pub use pose_file::{named_pose, parse_pose_toml, read_pose_file, resolve_pose, NAMED_POSES};
 pub use skinning::{dual_quaternion, linear_blend, SkinBinding, Skinning, SparseWeights};
 pub use volume_correction::{volume_rig, VolumeOptions, VolumePose, VolumeRig};

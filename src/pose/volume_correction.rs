@@ -269,21 +269,37 @@ impl VolumeRig {
         prepared: &TemplateTet,
         rest_nodes: Vec<Point>,
     ) -> Result<VolumeRig> {
-        if rest_nodes.len() != prepared.tet.n_nodes() {
+        let node_weights = super::tet_node_weights(template, prepared)?;
+        Self::from_parts(
+            prepared.tet.tets.clone(),
+            prepared.binding.clone(),
+            node_weights,
+            rest_nodes,
+        )
+    }
+
+    /// The rig of the tetrahedra `tets` with nodes `rest_nodes`, the boundary `binding` on the
+    /// skin and the `node_weights` of [`super::tet_node_weights`], all homologous to the
+    /// template's.
+    pub fn from_parts(
+        tets: Vec<[usize; 4]>,
+        binding: SurfaceBinding,
+        node_weights: LinkWeights,
+        rest_nodes: Vec<Point>,
+    ) -> Result<VolumeRig> {
+        if rest_nodes.len() != node_weights.len() {
             return Err(Error::invalid(format!(
                 "tet mesh has {} nodes, the template's {}: not homologous",
                 rest_nodes.len(),
-                prepared.tet.n_nodes()
+                node_weights.len()
             )));
         }
-        let node_weights = super::tet_node_weights(template, prepared)?;
-        let labels = tet_segments(&prepared.tet.tets, &node_weights);
-        let rest_volumes =
-            segment_volumes(&rest_nodes, &prepared.tet.tets, &labels, Link::ALL.len());
+        let labels = tet_segments(&tets, &node_weights);
+        let rest_volumes = segment_volumes(&rest_nodes, &tets, &labels, Link::ALL.len());
         Ok(VolumeRig {
             rest_nodes,
-            tets: prepared.tet.tets.clone(),
-            binding: prepared.binding.clone(),
+            tets,
+            binding,
             node_weights,
             labels,
             rest_volumes,
@@ -378,8 +394,10 @@ pub fn volume_rig(hand: &IndividualHand, model_dir: &Path) -> Result<VolumeRig> 
     let path = model_dir.join("tet.vtk");
     let tet = crate::io::vtk::read_vtk(&path, Units::Millimetres)?;
     let template = crate::template::model_template(model_dir, hand.side)?;
-    let prepared = crate::tet::TemplateTet::prepare(&template, None)?;
-    if tet.n_nodes() != prepared.tet.n_nodes() || tet.tets != prepared.tet.tets {
+    // The template's tet mesh from the cache and its node weights as reconstruct stored them:
+    // the elastic factorisation is made again only when the weights are not in the cache.
+    let template_tet = crate::tet::template_tet_mesh(&template, None)?;
+    if tet.n_nodes() != template_tet.n_nodes() || tet.tets != template_tet.tets {
         return Err(Error::input(
             &path,
             format!(
@@ -388,10 +406,20 @@ pub fn volume_rig(hand: &IndividualHand, model_dir: &Path) -> Result<VolumeRig> 
                 tet.n_nodes(),
                 tet.n_tets(),
                 hand.side,
-                prepared.tet.n_nodes(),
-                prepared.tet.n_tets()
+                template_tet.n_nodes(),
+                template_tet.n_tets()
             ),
         ));
     }
-    VolumeRig::new(&template, &prepared, tet.nodes)
+    let binding = crate::tet::bind_boundary(&template_tet, &template.mesh)?;
+    let weights = match super::cached_tet_node_weights(&template, template_tet.n_nodes()) {
+        Some(w) => w,
+        None => {
+            let prepared = crate::tet::TemplateTet::from_mesh(&template, template_tet.clone())?;
+            let w = super::tet_node_weights(&template, &prepared)?;
+            super::store_tet_node_weights(&template, &w);
+            w
+        }
+    };
+    VolumeRig::from_parts(template_tet.tets, binding, weights, tet.nodes)
 }
