@@ -47,7 +47,7 @@ pub struct PartShape {
 
 /// Band of the broad phase, mm: queries with a search radius up to this skip the exact
 /// projection of every point the grid puts outside the band.
-pub const GRID_BAND_MM: f64 = 3.0;
+pub(crate) const GRID_BAND_MM: f64 = 3.0;
 
 /// A point against the part, from [`PartShape::probe`].
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -63,7 +63,7 @@ pub enum Probe {
 }
 
 /// Centre of mass of the solid bounded by a closed mesh (signed tetrahedra from the origin).
-pub fn solid_centroid(mesh: &TriMesh) -> Option<Point> {
+pub(crate) fn solid_centroid(mesh: &TriMesh) -> Option<Point> {
     let mut v = 0.0;
     let mut c = Vec3::zeros();
     for f in 0..mesh.n_faces() {
@@ -346,7 +346,7 @@ pub fn contacts(
 }
 
 /// [`contacts`] from already computed per-vertex queries.
-pub fn contacts_from(
+pub(crate) fn contacts_from(
     q: &[Option<(f64, Point, Vec3)>],
     _points: &[Point],
     links: &[usize],

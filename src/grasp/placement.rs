@@ -101,15 +101,15 @@ pub struct PlacementResult {
 }
 
 /// Skin vertex stride of the placement search's screening (closing checks and contacts).
-pub const SCREEN_STRIDE: usize = 4;
+pub(crate) const SCREEN_STRIDE: usize = 4;
 
 /// Friction cone edges of the screening quality (a subset of the full cone's edges, so its
 /// epsilon is a lower bound of the full one's).
-pub const SCREEN_CONE_EDGES: usize = 4;
+pub(crate) const SCREEN_CONE_EDGES: usize = 4;
 
 /// Screened candidates whose full evaluation decides (taken down the screening ranking,
 /// skipping those the full autograsp refuses).
-pub const FINALISTS: usize = 6;
+pub(crate) const FINALISTS: usize = 6;
 
 /// Whether any skin vertex at the preshape of `plan` from `root` lies inside the part deeper
 /// than the broad phase's band (every vertex, by the voxel grid alone: the autograsp would

@@ -188,7 +188,7 @@ pub fn read_scene(path: &Path) -> Result<Scene> {
 }
 
 /// Parse scene `text` read from `path` (relative paths resolve against its folder).
-pub fn parse_scene(text: &str, path: &Path) -> Result<Scene> {
+pub(crate) fn parse_scene(text: &str, path: &Path) -> Result<Scene> {
     let raw: RawScene = toml::from_str(text).map_err(|e| Error::toml(path, text, &e))?;
     let dir = path.parent().unwrap_or(Path::new("."));
     let p = &raw.part;

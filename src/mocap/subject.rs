@@ -24,7 +24,7 @@ pub const SUBJECT_FILE: &str = "subject.toml";
 
 /// Largest accepted `marker_offset_mm` (skin surface to marker centre), mm: a marker further
 /// from the skin than this is not on a hand-sized plate.
-pub const MAX_MARKER_OFFSET_MM: f64 = 30.0;
+pub(crate) const MAX_MARKER_OFFSET_MM: f64 = 30.0;
 
 /// One of the seven trials of spec section 1, by its `[trials]` key.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
@@ -67,7 +67,7 @@ impl TrialKind {
     }
 
     /// Parse a `[trials]` key.
-    pub fn from_key(s: &str) -> Option<TrialKind> {
+    pub(crate) fn from_key(s: &str) -> Option<TrialKind> {
         TrialKind::ALL.into_iter().find(|k| k.key() == s)
     }
 }
@@ -132,7 +132,7 @@ impl Subject {
 
     /// Parse and validate the text of a `subject.toml` for the folder `dir`; errors name
     /// `dir/subject.toml`, the key and its line.
-    pub fn from_toml_str(text: &str, dir: &Path) -> Result<Subject> {
+    pub(crate) fn from_toml_str(text: &str, dir: &Path) -> Result<Subject> {
         let file = dir.join(SUBJECT_FILE);
         let raw: RawSubject = toml::from_str(text).map_err(|e| toml_error(&file, text, &e))?;
         let at = |span: std::ops::Range<usize>| line_of(text, span.start);
@@ -265,7 +265,7 @@ impl Subject {
 
     /// The text of `subject.toml` in the spec's layout; [`Subject::from_toml_str`] of it gives
     /// back an equal `Subject`. Deterministic: tables in the spec's key order.
-    pub fn to_toml_string(&self) -> String {
+    pub(crate) fn to_toml_string(&self) -> String {
         let mut s = String::new();
         s.push_str(&format!("name = {}\n", quote(&self.name)));
         s.push_str(&format!("hand = {}\n", quote(self.hand.as_str())));
@@ -303,7 +303,7 @@ impl Subject {
 
     /// The path of a trial: `dir` joined with its `[trials]` entry. The error names the missing
     /// key.
-    pub fn trial_path(&self, kind: TrialKind) -> Result<PathBuf> {
+    pub(crate) fn trial_path(&self, kind: TrialKind) -> Result<PathBuf> {
         match self.trials.get(kind.key()) {
             Some(p) => Ok(self.dir.join(p)),
             None => Err(Error::input(

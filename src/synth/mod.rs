@@ -126,7 +126,7 @@ impl Preset {
     }
 
     /// SD of the caliper measurement error, mm.
-    pub fn caliper_sd_mm(self) -> f64 {
+    pub(crate) fn caliper_sd_mm(self) -> f64 {
         match self {
             Preset::Typical | Preset::SmallRom => 0.4,
             Preset::Noisy => 0.8,
@@ -288,7 +288,7 @@ impl SynthOptions {
 /// Capture frame rate, Hz (the seed paper's).
 pub const FRAME_RATE: f64 = 100.0;
 /// Frames of the static reference trial (averaged by the reader).
-pub const REFERENCE_FRAMES: usize = 10;
+pub(crate) const REFERENCE_FRAMES: usize = 10;
 
 /// Ground truth of a simulated subject (`truth.json`, spec section 3).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]

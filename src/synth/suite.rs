@@ -66,7 +66,7 @@ pub fn read_suite_subjects(path: &Path) -> Result<Vec<SuiteSubject>> {
 }
 
 /// Parse a suite file's text (errors name `path`, the key and the line).
-pub fn parse_suite(text: &str, path: &Path) -> Result<Vec<SuiteSubject>> {
+pub(crate) fn parse_suite(text: &str, path: &Path) -> Result<Vec<SuiteSubject>> {
     let file: SuiteFile = toml::from_str(text).map_err(|e| Error::toml(path, text, &e))?;
     let mut out: Vec<SuiteSubject> = Vec::new();
     for e in file.subject {
