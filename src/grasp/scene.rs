@@ -408,7 +408,7 @@ approach = { translation_mm = [0, -50, 100], rotation_deg = [90, 0, 0] }
                 "length 3",
             ),
             (
-                with.replace("[-26.5, -15, 180]", "[0, 60, 180]"),
+                with.replace("[-26.5, -15, 180]", "[-26, 75, 180]"),
                 "one line",
             ),
             (with.replace("[-26.5, -15, 180]", "[nan, 1, 1]"), "PART_3"),
