@@ -791,11 +791,10 @@ pub fn simulate_grasp(
         if clash {
             continue;
         }
-        for f in first..=last {
-            let (x, y) = (positions[ia][f], positions[ib][f]);
-            positions[ia][f] = y;
-            positions[ib][f] = x;
-        }
+        // The two tracks exchange their samples over the swap's frames.
+        let (lo, hi) = (ia.min(ib), ia.max(ib));
+        let (head, tail) = positions.split_at_mut(hi);
+        head[lo][first..=last].swap_with_slice(&mut tail[0][first..=last]);
         label_swaps.push(LabelSwap {
             markers: [na, nb],
             first,
