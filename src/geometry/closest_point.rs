@@ -6,7 +6,10 @@
 //!   section 6.2.1), so its depth is `ceil(log2(faces / LEAF_SIZE))` whatever the mesh.
 //! * A point query ([`AabbTree::closest_point`]) descends nearer child first and prunes every box
 //!   that is further than the best triangle found so far (Ericson 6.5.1); the point-triangle test
-//!   is Ericson's Voronoi-region method (section 5.1.5), exact up to rounding.
+//!   is Ericson's Voronoi-region method (section 5.1.5), exact up to rounding. It walks a
+//!   four-wide copy of the tree (each node holds the boxes of its children's children side by
+//!   side) and reads the faces' corners from a copy stored in leaf order; the range and ray
+//!   queries walk the binary tree.
 //! * The sign of [`AabbTree::signed_distance`] is that of the angle-weighted pseudo-normal of the
 //!   closest feature (face, edge or vertex) dotted with `p - closest` (Bærentzen & Aanæs 2005,
 //!   "Signed distance computation using the angle weighted pseudonormal", IEEE TVCG 11(3)),
@@ -33,6 +36,28 @@ struct Node {
     /// Leaf: first index into `AabbTree::order`; inner: index of the second child.
     index: u32,
     /// Leaf: number of faces (> 0); inner: 0.
+    count: u32,
+}
+
+/// One node of the four-wide copy of the tree that point queries walk: the boxes of up to four
+/// children side by side (per axis, per child), so that one node's memory answers all four box
+/// tests and the tree is half as deep as the binary one.
+#[derive(Clone, Copy, Debug)]
+struct Wide {
+    lo: [[f64; 4]; 3],
+    hi: [[f64; 4]; 3],
+    /// Per child, a [`Child`] packed as `index` and `count` (see there).
+    index: [u32; 4],
+    count: [u32; 4],
+    /// Children in use (the first `len` slots).
+    len: u32,
+}
+
+/// A child of a [`Wide`] node: a leaf's face range in `AabbTree::order` (`count > 0`) or an
+/// inner node's index into `AabbTree::wide` (`count == 0`).
+#[derive(Clone, Copy, Debug)]
+struct Child {
+    index: u32,
     count: u32,
 }
 
@@ -151,6 +176,12 @@ pub struct AabbTree<'m> {
     nodes: Vec<Node>,
     /// Face indices in leaf order.
     order: Vec<u32>,
+    /// The corners of `order[i]` at `tris[i]`: a leaf reads its faces from one contiguous run
+    /// instead of chasing face then vertex indices into the mesh.
+    tris: Vec<[Point; 3]>,
+    /// The binary tree collapsed to four children per node (each inner node's children or
+    /// grandchildren), root first; walked by the closest-point queries.
+    wide: Vec<Wide>,
 }
 
 impl AabbTree<'static> {
@@ -185,7 +216,18 @@ impl<'m> AabbTree<'m> {
         if n > 0 {
             build_node(&mesh, &centroids, &mut order, 0, n, &mut nodes);
         }
-        AabbTree { mesh, nodes, order }
+        let tris: Vec<[Point; 3]> = order.iter().map(|&f| mesh.corners(f as usize)).collect();
+        let mut wide = Vec::with_capacity(nodes.len() / 3 + 1);
+        if !nodes.is_empty() {
+            collapse(&nodes, 0, &mut wide);
+        }
+        AabbTree {
+            mesh,
+            nodes,
+            order,
+            tris,
+            wide,
+        }
     }
 
     /// The mesh the tree was built over.
@@ -202,30 +244,51 @@ impl<'m> AabbTree<'m> {
     /// [`Self::closest_point`] when it is within `max_dist` of `p`, else `None`; boxes further
     /// than `max_dist` are never opened, so a query far from the mesh costs a few box tests.
     pub fn closest_point_within(&self, p: &Point, max_dist: f64) -> Option<Closest> {
-        // One deref of the borrowed-or-owned mesh, not one per face.
-        let mesh: &TriMesh = &self.mesh;
-        if self.nodes.is_empty()
-            || !p.coords.iter().all(|c| c.is_finite())
-            || max_dist.is_nan()
-            || max_dist < 0.0
-        {
+        if max_dist.is_nan() || max_dist < 0.0 {
+            return None;
+        }
+        self.nearest(p, max_dist * max_dist).map(|(_, c)| c)
+    }
+
+    /// [`Self::closest_point`] and whether it is within `max_dist` of `p`, decided exactly as
+    /// [`Self::closest_point_within`] decides (on the squared distance, which the rounding of
+    /// the square root could otherwise flip at the bound): one traversal for a caller that needs
+    /// the closest point beyond the bound too. `None` as for [`Self::closest_point`] or when
+    /// `max_dist` is NaN or negative.
+    pub fn closest_point_and_within(&self, p: &Point, max_dist: f64) -> Option<(Closest, bool)> {
+        if max_dist.is_nan() || max_dist < 0.0 {
+            return None;
+        }
+        let (d2, c) = self.nearest(p, f64::INFINITY)?;
+        Some((c, d2 <= max_dist * max_dist))
+    }
+
+    /// The closest face within `sqrt(bound2)` of `p` (lowest face index among exact ties) and
+    /// its squared distance, walking the four-wide tree nearest child first. The stack holds
+    /// each pushed box's squared distance, computed once at its parent, so a box is re-checked
+    /// against the shrinking bound for free when popped; a box further than the bound is never
+    /// pushed. The answer does not depend on the visiting order: a box is only skipped when it
+    /// is strictly further than a face already found, so it holds neither a nearer face nor a
+    /// tie.
+    fn nearest(&self, p: &Point, bound2: f64) -> Option<(f64, Closest)> {
+        if self.wide.is_empty() || !p.coords.iter().all(|c| c.is_finite()) {
             return None;
         }
         let mut best: Option<(f64, usize, Point, [f64; 3], Feature)> = None;
-        let mut best_d2 = max_dist * max_dist;
-        let mut stack: Vec<u32> = Vec::with_capacity(64);
-        stack.push(0);
-        while let Some(i) = stack.pop() {
-            let node = &self.nodes[i as usize];
-            if box_dist2(p, &node.lo, &node.hi) > best_d2 {
+        let mut best_d2 = bound2;
+        // Depth-first holds at most three pending siblings per level.
+        let mut stack: Vec<(f64, Child)> = Vec::with_capacity(64);
+        stack.push((0.0, Child { index: 0, count: 0 }));
+        while let Some((d, child)) = stack.pop() {
+            if d > best_d2 {
                 continue;
             }
-            if node.count > 0 {
-                let s = node.index as usize;
-                for &f in &self.order[s..s + node.count as usize] {
-                    let f = f as usize;
-                    let [a, b, c] = mesh.corners(f);
-                    let (q, bary, feat) = closest_point_triangle(p, &a, &b, &c);
+            if child.count > 0 {
+                let s = child.index as usize;
+                for k in s..s + child.count as usize {
+                    let f = self.order[k] as usize;
+                    let [a, b, c] = &self.tris[k];
+                    let (q, bary, feat) = closest_point_triangle(p, a, b, c);
                     let d2 = (q - p).norm_squared();
                     let better = match best {
                         None => d2 <= best_d2,
@@ -236,32 +299,50 @@ impl<'m> AabbTree<'m> {
                         best_d2 = d2;
                     }
                 }
-            } else {
-                let (l, r) = (i + 1, node.index);
-                let dl = {
-                    let n = &self.nodes[l as usize];
-                    box_dist2(p, &n.lo, &n.hi)
-                };
-                let dr = {
-                    let n = &self.nodes[r as usize];
-                    box_dist2(p, &n.lo, &n.hi)
-                };
-                // Visit the nearer child first (pushed last).
-                if dl <= dr {
-                    stack.push(r);
-                    stack.push(l);
-                } else {
-                    stack.push(l);
-                    stack.push(r);
+                continue;
+            }
+            let w = &self.wide[child.index as usize];
+            let mut d2 = [0.0; 4];
+            for k in 0..3 {
+                for (j, d2) in d2.iter_mut().enumerate() {
+                    let e = (w.lo[k][j] - p[k]).max(p[k] - w.hi[k][j]).max(0.0);
+                    *d2 += e * e;
                 }
             }
+            // The children within the bound, nearest last (popped first).
+            let mut near: [(f64, usize); 4] = [(0.0, 0); 4];
+            let mut n = 0;
+            for (j, &dj) in d2.iter().enumerate().take(w.len as usize) {
+                if dj > best_d2 {
+                    continue;
+                }
+                let mut at = n;
+                while at > 0 && near[at - 1].0 < dj {
+                    near[at] = near[at - 1];
+                    at -= 1;
+                }
+                near[at] = (dj, j);
+                n += 1;
+            }
+            for &(dj, j) in &near[..n] {
+                let c = Child {
+                    index: w.index[j],
+                    count: w.count[j],
+                };
+                stack.push((dj, c));
+            }
         }
-        best.map(|(d2, face, point, barycentric, feature)| Closest {
-            face,
-            point,
-            distance: d2.sqrt(),
-            barycentric,
-            feature,
+        best.map(|(d2, face, point, barycentric, feature)| {
+            (
+                d2,
+                Closest {
+                    face,
+                    point,
+                    distance: d2.sqrt(),
+                    barycentric,
+                    feature,
+                },
+            )
         })
     }
 
@@ -284,8 +365,6 @@ impl<'m> AabbTree<'m> {
     /// Every face within `radius` of `p`, as `(face, distance)` sorted by face index, appended to
     /// `out` (cleared first). A range query: boxes further than `radius` are pruned.
     pub fn faces_within(&self, p: &Point, radius: f64, out: &mut Vec<(usize, f64)>) {
-        // One deref of the borrowed-or-owned mesh, not one per face.
-        let mesh: &TriMesh = &self.mesh;
         out.clear();
         if self.nodes.is_empty()
             || !p.coords.iter().all(|c| c.is_finite())
@@ -303,10 +382,10 @@ impl<'m> AabbTree<'m> {
             }
             if node.count > 0 {
                 let s = node.index as usize;
-                for &f in &self.order[s..s + node.count as usize] {
+                let e = s + node.count as usize;
+                for (&f, [a, b, c]) in self.order[s..e].iter().zip(&self.tris[s..e]) {
                     let f = f as usize;
-                    let [a, b, c] = mesh.corners(f);
-                    let (q, ..) = closest_point_triangle(p, &a, &b, &c);
+                    let (q, ..) = closest_point_triangle(p, a, b, c);
                     let d2 = (q - p).norm_squared();
                     if d2 <= r2 {
                         out.push((f, d2.sqrt()));
@@ -330,8 +409,6 @@ impl<'m> AabbTree<'m> {
         out: &mut Vec<(usize, f64)>,
     ) -> Option<Closest> {
         out.clear();
-        // One deref of the borrowed-or-owned mesh, not one per face.
-        let mesh: &TriMesh = &self.mesh;
         if self.nodes.is_empty()
             || !p.coords.iter().all(|c| c.is_finite())
             || margin.is_nan()
@@ -350,10 +427,10 @@ impl<'m> AabbTree<'m> {
             }
             if node.count > 0 {
                 let s = node.index as usize;
-                for &f in &self.order[s..s + node.count as usize] {
+                let e = s + node.count as usize;
+                for (&f, [a, b, c]) in self.order[s..e].iter().zip(&self.tris[s..e]) {
                     let f = f as usize;
-                    let [a, b, c] = mesh.corners(f);
-                    let (q, bary, feat) = closest_point_triangle(p, &a, &b, &c);
+                    let (q, bary, feat) = closest_point_triangle(p, a, b, c);
                     let d2 = (q - p).norm_squared();
                     if d2 > bound2 {
                         continue;
@@ -405,8 +482,6 @@ impl<'m> AabbTree<'m> {
     /// (Möller & Trumbore 1997 per face, slab test per box: Kay & Kajiya 1986); faces are hit
     /// from either side. `dir` need not be unit; `t` is in units of `dir`.
     pub fn ray_cast(&self, origin: &Point, dir: &Vec3, t_min: f64, t_max: f64) -> Option<RayHit> {
-        // One deref of the borrowed-or-owned mesh, not one per face.
-        let mesh: &TriMesh = &self.mesh;
         if self.nodes.is_empty() || dir.norm_squared() == 0.0 {
             return None;
         }
@@ -421,10 +496,10 @@ impl<'m> AabbTree<'m> {
             }
             if node.count > 0 {
                 let s = node.index as usize;
-                for &f in &self.order[s..s + node.count as usize] {
+                let e = s + node.count as usize;
+                for (&f, [a, b, c]) in self.order[s..e].iter().zip(&self.tris[s..e]) {
                     let f = f as usize;
-                    let [a, b, c] = mesh.corners(f);
-                    if let Some(t) = ray_triangle(origin, dir, &a, &b, &c) {
+                    if let Some(t) = ray_triangle(origin, dir, a, b, c) {
                         let better = t > t_min
                             && (t < t_best || (t == t_best && best.is_some_and(|(_, bf)| f < bf)));
                         if better {
@@ -525,6 +600,49 @@ fn build_node(
         let right = build_node(mesh, centroids, order, mid, end, nodes);
         nodes[slot].index = right;
         nodes[slot].count = 0;
+    }
+    slot as u32
+}
+
+/// Append the four-wide node for binary node `i` (and, depth first, those of its inner
+/// children) to `wide`, returning its index: the children are those of `i`'s children, or the
+/// child itself when it is a leaf. A leaf root becomes a node with that one child.
+fn collapse(nodes: &[Node], i: usize, wide: &mut Vec<Wide>) -> u32 {
+    let mut kids: Vec<usize> = Vec::with_capacity(4);
+    let node = &nodes[i];
+    if node.count > 0 {
+        kids.push(i);
+    } else {
+        for c in [i + 1, node.index as usize] {
+            let cn = &nodes[c];
+            if cn.count > 0 {
+                kids.push(c);
+            } else {
+                kids.extend([c + 1, cn.index as usize]);
+            }
+        }
+    }
+    let slot = wide.len();
+    wide.push(Wide {
+        lo: [[f64::INFINITY; 4]; 3],
+        hi: [[f64::NEG_INFINITY; 4]; 3],
+        index: [0; 4],
+        count: [0; 4],
+        len: kids.len() as u32,
+    });
+    for (j, &c) in kids.iter().enumerate() {
+        let cn = nodes[c];
+        for k in 0..3 {
+            wide[slot].lo[k][j] = cn.lo[k];
+            wide[slot].hi[k][j] = cn.hi[k];
+        }
+        let (index, count) = if cn.count > 0 {
+            (cn.index, cn.count)
+        } else {
+            (collapse(nodes, c, wide), 0)
+        };
+        wide[slot].index[j] = index;
+        wide[slot].count[j] = count;
     }
     slot as u32
 }
@@ -840,7 +958,12 @@ mod tests {
             let c = tree.closest_point(&p).unwrap();
             assert_eq!(owned.closest_point(&p), Some(c));
             let r = rng.range(0.0, 30.0);
-            match tree.closest_point_within(&p, r) {
+            let within = tree.closest_point_within(&p, r);
+            assert_eq!(
+                tree.closest_point_and_within(&p, r),
+                Some((c, within.is_some()))
+            );
+            match within {
                 Some(b) => {
                     assert!(c.distance <= r);
                     assert_eq!(b, c);

@@ -1,4 +1,4 @@
-//! Contacts between the posed skin and the part, from parry point queries.
+//! Contacts between the posed skin and the part, from point queries on the part's face tree.
 //!
 //! The part is indexed by the toolkit's face tree ([`AabbTree`]) and, when it is a closed
 //! oriented 2-manifold, angle-weighted pseudo-normals (Bærentzen & Aanæs 2005), which make the
@@ -15,7 +15,7 @@
 use super::broad::{NearGrid, Zone};
 use crate::anatomy::{Finger, Link};
 use crate::error::{Error, Result};
-use crate::geometry::closest_point::{AabbTree, PseudoNormals};
+use crate::geometry::closest_point::{AabbTree, Closest, PseudoNormals};
 use crate::geometry::{Point, TriMesh, Vec3};
 use rayon::prelude::*;
 use serde::Serialize;
@@ -151,22 +151,38 @@ impl PartShape {
     /// answers when `max_dist` is within its band.
     #[inline]
     pub fn probe(&self, p: &Point, max_dist: f64) -> Probe {
+        let zone = self.grid.zone(p);
         if max_dist <= self.grid.band {
-            match self.grid.zone(p) {
+            match zone {
                 Zone::Outside => return Probe::Far,
                 Zone::Inside => return Probe::Deep,
                 Zone::Near => {}
             }
         }
-        match self.exact(p, max_dist) {
-            Some((d, q, n)) => Probe::Hit(d, q, n),
-            None if !self.closed => Probe::Far,
-            None => match self.grid.zone(p) {
-                Zone::Outside => Probe::Far,
-                Zone::Inside => Probe::Deep,
-                // Beyond the search radius, on a side only the exact query can tell.
-                Zone::Near if self.inside(p) => Probe::Deep,
-                Zone::Near => Probe::Far,
+        match (&self.normals, zone) {
+            // A near point on a closed part needs the closest feature even beyond the search
+            // radius, for its side: one unbounded traversal answers both, where a bounded query
+            // that finds nothing would be followed by a second, unbounded one.
+            (Some(normals), Zone::Near) => {
+                let Some((c, within)) = self.tree.closest_point_and_within(p, max_dist) else {
+                    return Probe::Far;
+                };
+                let (d, q, n) = self.closed_hit(normals, p, &c);
+                if within && self.in_reach(p, max_dist) {
+                    Probe::Hit(d, q, n)
+                } else if d < 0.0 {
+                    Probe::Deep
+                } else {
+                    Probe::Far
+                }
+            }
+            _ => match self.exact(p, max_dist) {
+                Some((d, q, n)) => Probe::Hit(d, q, n),
+                None if !self.closed => Probe::Far,
+                None => match zone {
+                    Zone::Inside => Probe::Deep,
+                    _ => Probe::Far,
+                },
             },
         }
     }
@@ -176,14 +192,6 @@ impl PartShape {
         self.tree.distance(p).unwrap_or(f64::INFINITY)
     }
 
-    /// Whether `p` is inside the closed part (always `false` for an open one).
-    fn inside(&self, p: &Point) -> bool {
-        self.normals
-            .as_ref()
-            .and_then(|n| self.tree.signed_distance(n, p))
-            .is_some_and(|d| d < 0.0)
-    }
-
     /// First hit of the ray `origin + t * dir` (either side of a face), as `t`.
     pub fn ray_cast(&self, origin: &Point, dir: &Vec3) -> Option<f64> {
         self.tree
@@ -191,25 +199,32 @@ impl PartShape {
             .map(|h| h.t)
     }
 
+    /// Whether the part's bounds grown by `max_dist` hold `p` (else nothing is within reach).
+    fn in_reach(&self, p: &Point, max_dist: f64) -> bool {
+        (0..3).all(|a| p[a] >= self.lo[a] - max_dist && p[a] <= self.hi[a] + max_dist)
+    }
+
     fn exact(&self, p: &Point, max_dist: f64) -> Option<(f64, Point, Vec3)> {
-        for a in 0..3 {
-            if p[a] < self.lo[a] - max_dist || p[a] > self.hi[a] + max_dist {
-                return None;
-            }
+        if !self.in_reach(p, max_dist) {
+            return None;
         }
         let c = self.tree.closest_point_within(p, max_dist)?;
-        let d = c.distance;
         match &self.normals {
-            // The closest feature's pseudo-normal: the sign, and a normal that does not depend
-            // on which of the faces meeting at an edge or corner the query happened to name.
-            Some(normals) => {
-                let n = normals.of(&self.mesh, c.face, c.feature);
-                let inside = (p - c.point).dot(&n) < 0.0;
-                let n = n.try_normalize(1e-12).unwrap_or(self.face_normals[c.face]);
-                Some((if inside { -d } else { d }, c.point, n))
-            }
-            None => Some((d, c.point, self.face_normals[c.face])),
+            Some(normals) => Some(self.closed_hit(normals, p, &c)),
+            None => Some((c.distance, c.point, self.face_normals[c.face])),
         }
+    }
+
+    /// Signed distance, projection and outward unit normal of `p` from its closest point `c` on
+    /// the closed part.
+    fn closed_hit(&self, normals: &PseudoNormals, p: &Point, c: &Closest) -> (f64, Point, Vec3) {
+        // The closest feature's pseudo-normal: the sign, and a normal that does not depend on
+        // which of the faces meeting at an edge or corner the query happened to name.
+        let n = normals.of(&self.mesh, c.face, c.feature);
+        let inside = (p - c.point).dot(&n) < 0.0;
+        let n = n.try_normalize(1e-12).unwrap_or(self.face_normals[c.face]);
+        let d = c.distance;
+        (if inside { -d } else { d }, c.point, n)
     }
 }
 
