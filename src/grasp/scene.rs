@@ -10,6 +10,9 @@
 //! friction = 0.5                 # Coulomb coefficient between skin and part
 //! mass_g = 350                   # grams
 //!
+//! [part.markers]                 # optional: markers on the part, mm, in the part file's frame
+//! PART_1 = [0.0, 30.0, 180.0]    #   (spec section 5: `ergohand track` follows the part by them)
+//!
 //! [hand]                         # optional table
 //! model = "../out"               # a `reconstruct` output folder; omitted: the template hand
 //! side = "right"                 # right | left (default right)
@@ -29,9 +32,11 @@
 
 use crate::anatomy::Side;
 use crate::error::{Error, Result};
+use crate::geometry::Point;
 use crate::io::Units;
 use nalgebra::{Isometry3, Translation3, UnitQuaternion};
 use serde::Deserialize;
+use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
 /// Grasp taxonomy entries supported (after Feix et al. 2016, "The GRASP taxonomy").
@@ -114,6 +119,9 @@ pub struct Scene {
     pub candidates: usize,
     /// Placement search time bound, s.
     pub time_limit_s: f64,
+    /// `[part.markers]`: marker name -> position in the part file's frame, mm (empty when
+    /// not given).
+    pub part_markers: BTreeMap<String, Point>,
 }
 
 #[derive(Deserialize)]
@@ -133,6 +141,8 @@ struct RawPart {
     rotation_deg: Option<[f64; 3]>,
     friction: f64,
     mass_g: f64,
+    #[serde(default)]
+    markers: BTreeMap<String, [f64; 3]>,
 }
 
 #[derive(Deserialize)]
@@ -221,6 +231,21 @@ pub fn parse_scene(text: &str, path: &Path) -> Result<Scene> {
             "part.file is empty; name the part's mesh file",
         ));
     }
+    let mut part_markers = BTreeMap::new();
+    for (name, v) in &p.markers {
+        finite(path, &format!("part.markers.{name}"), v)?;
+        // Millimetres whatever the mesh's unit (spec section 5).
+        part_markers.insert(name.clone(), Point::new(v[0], v[1], v[2]));
+    }
+    if !part_markers.is_empty() && part_markers.len() < 3 {
+        return Err(Error::input(
+            path,
+            format!(
+                "part.markers has {} marker(s); the part's pose needs three or more",
+                part_markers.len()
+            ),
+        ));
+    }
     let (hand_model, side) = match &raw.hand {
         None => (None, Side::Right),
         Some(h) => {
@@ -297,6 +322,7 @@ pub fn parse_scene(text: &str, path: &Path) -> Result<Scene> {
         seed: g.seed.unwrap_or(1),
         candidates,
         time_limit_s,
+        part_markers,
     })
 }
 
@@ -330,6 +356,29 @@ approach = { translation_mm = [0, -50, 100], rotation_deg = [90, 0, 0] }
             }
             Approach::Auto => panic!("given approach read as auto"),
         }
+        assert!(s.part_markers.is_empty());
+    }
+
+    #[test]
+    fn part_markers_are_read_in_mm() {
+        let text = OK.replace(
+            "mass_g = 350",
+            "mass_g = 350\n[part.markers]\nPART_1 = [0.0, 30.0, 180.0]\nPART_2 = [26.0, -15.0, 180.0]\n\
+             PART_3 = [-26, -15, 180]",
+        );
+        let s = parse_scene(&text, Path::new("s.toml")).unwrap();
+        assert_eq!(s.part_markers.len(), 3);
+        assert_eq!(s.part_markers["PART_3"], Point::new(-26.0, -15.0, 180.0));
+        let two = text.replace("PART_3 = [-26, -15, 180]", "");
+        let e = parse_scene(&two, Path::new("s.toml"))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("part.markers") && e.contains("three"), "{e}");
+        let bad = text.replace("[-26, -15, 180]", "[-26, nan, 180]");
+        let e = parse_scene(&bad, Path::new("s.toml"))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("part.markers.PART_3"), "{e}");
     }
 
     #[test]

@@ -114,6 +114,11 @@ struct RawSubject {
     dimensions: BTreeMap<Spanned<String>, Spanned<f64>>,
     #[serde(default)]
     labels: BTreeMap<Spanned<String>, Spanned<String>>,
+    /// `[motions]` (spec section 5): checked to be names and paths here, read by
+    /// [`crate::mocap::motions`], so that a subject with motion trials loads everywhere.
+    #[serde(default)]
+    #[allow(dead_code)]
+    motions: BTreeMap<String, String>,
 }
 
 impl Subject {
