@@ -68,6 +68,13 @@ enum Command {
         /// Length of every calibration trial in seconds (default: drawn from 40-80 s).
         #[arg(long)]
         duration: Option<f64>,
+        /// Length of each grasp motion trial in seconds (trials/grasp_*.c3d with
+        /// truth_motion/grasp_*.json): reach, close, hold, lift, release.
+        #[arg(long, default_value_t = ergohand::synth::grasp_motion::DEFAULT_MOTION_S)]
+        motion_s: f64,
+        /// Write no grasp motion trials (only the calibration trials).
+        #[arg(long)]
+        no_motions: bool,
         /// Replace a non-empty output folder.
         #[arg(long)]
         force: bool,
@@ -215,9 +222,19 @@ fn main() -> ExitCode {
             posture,
             body,
             duration,
+            motion_s,
+            no_motions,
             force,
         } => cli::synth(
-            &cli::synth_options(seed, preset, hand, posture, body, duration),
+            &cli::synth_options(
+                seed,
+                preset,
+                hand,
+                posture,
+                body,
+                duration,
+                (!no_motions).then_some(motion_s),
+            ),
             &out,
             force,
         ),

@@ -668,6 +668,7 @@ fn the_template_cannot_reach_the_procedural_body() {
         ergohand::synth::Posture::Template,
         ergohand::synth::Body::Procedural,
         Some(15.0),
+        None,
     );
     opts.voxel_mm = 0.7;
     let sdir = tmp.path().join("P");
@@ -703,6 +704,7 @@ fn the_library_reconstruction_is_what_the_command_writes() {
         ergohand::synth::Posture::Template,
         ergohand::synth::Body::Template,
         Some(8.0),
+        None,
     );
     opts.voxel_mm = 2.0;
     ergohand::cli::synth(&opts, &subj, false).unwrap();

@@ -40,16 +40,16 @@ use std::time::{Instant, SystemTime};
 pub const OUTPUTS: [&str; 7] = crate::io::output_paths::MODEL_FILES;
 
 /// Threads per core at most: more only adds memory (each thread holds a subject) and switching.
-pub const JOBS_PER_CORE: usize = 2;
+pub(crate) const JOBS_PER_CORE: usize = 2;
 
 /// A temporary file of [`crate::io::atomic`] older than this is left over from a killed run (a
 /// write takes seconds); younger ones may belong to a run still going and are kept.
-pub const STALE_TMP_AFTER: std::time::Duration = std::time::Duration::from_secs(600);
+pub(crate) const STALE_TMP_AFTER: std::time::Duration = std::time::Duration::from_secs(600);
 
 /// The summary files written into the batch's output folder.
-pub const SUMMARY_MD: &str = "batch-summary.md";
+pub(crate) const SUMMARY_MD: &str = "batch-summary.md";
 /// See [`SUMMARY_MD`].
-pub const SUMMARY_JSON: &str = "batch-summary.json";
+pub(crate) const SUMMARY_JSON: &str = "batch-summary.json";
 
 /// How a batch runs.
 #[derive(Clone, Debug, Default)]
@@ -171,7 +171,7 @@ impl BatchSummary {
     }
 
     /// The summary as a markdown table (also what is printed on stderr).
-    pub fn to_markdown(&self) -> String {
+    pub(crate) fn to_markdown(&self) -> String {
         let f = |x: Option<f64>, p: usize| x.map_or("-".into(), |x| format!("{x:.p$}"));
         let n = |x: Option<u64>| x.map_or("-".into(), |x| x.to_string());
         let mut md = format!(
@@ -213,7 +213,7 @@ impl BatchSummary {
 
 /// The subject folders of `dir`: its sub-folders holding `subject.toml`, sorted by name, as
 /// `(name, path)`. Errors when `dir` cannot be read or holds no subject folder.
-pub fn discover(dir: &Path) -> Result<Vec<(String, PathBuf)>> {
+pub(crate) fn discover(dir: &Path) -> Result<Vec<(String, PathBuf)>> {
     let entries = std::fs::read_dir(dir).map_err(|e| Error::io(dir, e))?;
     let mut out = Vec::new();
     for e in entries {
@@ -252,7 +252,7 @@ pub fn inputs(subject_dir: &Path) -> Result<Vec<PathBuf>> {
 /// so a subject folder replaced with preserved timestamps is redone. `false` whenever anything
 /// cannot be read (a missing output, an unreadable `subject.toml`, a missing trial), so such a
 /// subject is run and reports its own error.
-pub fn up_to_date(
+pub(crate) fn up_to_date(
     subject_dir: &Path,
     out: &Path,
     opts: &SkinOptions,
@@ -476,7 +476,11 @@ pub fn run(subjects_dir: &Path, out: &Path, opts: &BatchOptions) -> Result<Batch
 
 /// The threads to use: `asked` (default: the cores) at most [`JOBS_PER_CORE`] x `cores` and at
 /// most `todo` (no idle threads), at least 1; and `asked` again when a request was lowered.
-pub fn clamp_jobs(asked: Option<usize>, cores: usize, todo: usize) -> (usize, Option<usize>) {
+pub(crate) fn clamp_jobs(
+    asked: Option<usize>,
+    cores: usize,
+    todo: usize,
+) -> (usize, Option<usize>) {
     let want = asked.unwrap_or(cores).max(1);
     let cap = (JOBS_PER_CORE * cores.max(1)).min(todo).max(1);
     match asked {
@@ -488,7 +492,7 @@ pub fn clamp_jobs(asked: Option<usize>, cores: usize, todo: usize) -> (usize, Op
 /// Remove the temporary files ([`crate::io::atomic`]'s hidden `.NAME.*.tmp`) that a killed run
 /// left in `out` and in the output folders of `subjects`, when older than [`STALE_TMP_AFTER`]
 /// (a younger one may be another run's write in progress). Returns the files removed.
-pub fn remove_stale_temporaries(out: &Path, subjects: &[(String, PathBuf)]) -> Vec<PathBuf> {
+pub(crate) fn remove_stale_temporaries(out: &Path, subjects: &[(String, PathBuf)]) -> Vec<PathBuf> {
     let now = SystemTime::now();
     let mut removed = Vec::new();
     let folders = std::iter::once(out.to_path_buf()).chain(subjects.iter().map(|s| out.join(&s.0)));

@@ -9,7 +9,7 @@ use crate::io::Units;
 use std::path::Path;
 
 /// Write `grasp.json`, `grasp.glb` and `contact_map.png` of an outcome into `out`.
-pub fn write_outputs(o: &GraspOutcome, out: &Path) -> Result<()> {
+pub(crate) fn write_outputs(o: &GraspOutcome, out: &Path) -> Result<()> {
     std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
     let json = serde_json::to_string_pretty(&o.report)
         .map_err(|e| Error::invalid(format!("grasp.json: {e}")))?;
@@ -69,7 +69,7 @@ pub fn write_outputs(o: &GraspOutcome, out: &Path) -> Result<()> {
 }
 
 /// The files [`write_outputs`] writes into its folder.
-pub const OUTPUT_FILES: [&str; 3] = ["grasp.json", "grasp.glb", "contact_map.png"];
+pub(crate) const OUTPUT_FILES: [&str; 3] = ["grasp.json", "grasp.glb", "contact_map.png"];
 
 /// `ergohand grasp SCENE.toml --model OUT --out DIR`: read the scene, load the hand (`model`
 /// overrides the scene's `hand.model`; neither: the template), check the output folder (see

@@ -15,12 +15,14 @@ pub fn synth_options(
     posture: Posture,
     body: Body,
     duration: Option<f64>,
+    motion_s: Option<f64>,
 ) -> SynthOptions {
     SynthOptions {
         hand,
         posture,
         body,
         duration_s: duration,
+        motion_s,
         ..SynthOptions::new(seed, preset)
     }
 }
@@ -38,6 +40,23 @@ pub fn synth(opts: &SynthOptions, out: &Path, force: bool) -> Result<()> {
     synth::write_subject(out, &s, force)?;
     spinner.finish_and_clear();
     let frames: usize = s.trials.values().map(|t| t.n_frames()).sum();
+    for (name, m) in &s.motions {
+        let hidden = m
+            .trajectories
+            .positions
+            .iter()
+            .flatten()
+            .filter(|p| p.is_none())
+            .count();
+        let cells = m.trajectories.positions.len() * m.trajectories.n_frames();
+        log::info!(
+            "synth: motion {name}: {} frames, {} markers, {:.1} % of samples hidden, {} label swap(s)",
+            m.trajectories.n_frames(),
+            m.trajectories.labels.len(),
+            100.0 * hidden as f64 / cells.max(1) as f64,
+            m.truth.label_swaps.len()
+        );
+    }
     log::info!(
         "synth: {} ({} hand, {} body, preset {}, posture {:?}) -> {}: {} trials, {} frames, reference surface {} faces, {:.1} s",
         s.subject.name,

@@ -18,6 +18,7 @@
 
 use super::{Point, TriMesh, Vec3};
 use rayon::prelude::*;
+use std::borrow::Cow;
 use std::collections::HashMap;
 
 /// Faces per leaf: small leaves prune best for point queries against fine meshes.
@@ -142,13 +143,21 @@ fn box_dist2(p: &Point, lo: &[f64; 3], hi: &[f64; 3]) -> f64 {
     d2
 }
 
-/// A static AABB tree over the faces of a borrowed mesh (see the module doc).
+/// A static AABB tree over the faces of a mesh, borrowed ([`AabbTree::new`]) or owned
+/// ([`AabbTree::owning`]) (see the module doc).
 #[derive(Clone, Debug)]
 pub struct AabbTree<'m> {
-    mesh: &'m TriMesh,
+    mesh: Cow<'m, TriMesh>,
     nodes: Vec<Node>,
     /// Face indices in leaf order.
     order: Vec<u32>,
+}
+
+impl AabbTree<'static> {
+    /// [`AabbTree::new`] over a mesh the tree keeps, for a structure that holds its own index.
+    pub fn owning(mesh: TriMesh) -> Self {
+        Self::build(Cow::Owned(mesh))
+    }
 }
 
 impl<'m> AabbTree<'m> {
@@ -158,6 +167,10 @@ impl<'m> AabbTree<'m> {
     /// # Panics
     /// Never for a mesh made by [`TriMesh::new`]; meshes beyond 2^32 faces are not supported.
     pub fn new(mesh: &'m TriMesh) -> Self {
+        Self::build(Cow::Borrowed(mesh))
+    }
+
+    fn build(mesh: Cow<'m, TriMesh>) -> Self {
         let n = mesh.n_faces();
         assert!(n < u32::MAX as usize, "more than 2^32 faces");
         let centroids: Vec<[f64; 3]> = (0..n)
@@ -170,24 +183,34 @@ impl<'m> AabbTree<'m> {
         let mut order: Vec<u32> = (0..n as u32).collect();
         let mut nodes = Vec::with_capacity(2 * n / LEAF_SIZE + 1);
         if n > 0 {
-            build_node(mesh, &centroids, &mut order, 0, n, &mut nodes);
+            build_node(&mesh, &centroids, &mut order, 0, n, &mut nodes);
         }
         AabbTree { mesh, nodes, order }
     }
 
     /// The mesh the tree was built over.
-    pub fn mesh(&self) -> &'m TriMesh {
-        self.mesh
+    pub fn mesh(&self) -> &TriMesh {
+        &self.mesh
     }
 
     /// The closest point of the mesh to `p` (Ericson 5.1.5 per face, pruned by the tree);
     /// `None` for an empty mesh or a non-finite `p`.
     pub fn closest_point(&self, p: &Point) -> Option<Closest> {
-        if self.nodes.is_empty() || !p.coords.iter().all(|c| c.is_finite()) {
+        self.closest_point_within(p, f64::INFINITY)
+    }
+
+    /// [`Self::closest_point`] when it is within `max_dist` of `p`, else `None`; boxes further
+    /// than `max_dist` are never opened, so a query far from the mesh costs a few box tests.
+    pub fn closest_point_within(&self, p: &Point, max_dist: f64) -> Option<Closest> {
+        if self.nodes.is_empty()
+            || !p.coords.iter().all(|c| c.is_finite())
+            || max_dist.is_nan()
+            || max_dist < 0.0
+        {
             return None;
         }
         let mut best: Option<(f64, usize, Point, [f64; 3], Feature)> = None;
-        let mut best_d2 = f64::INFINITY;
+        let mut best_d2 = max_dist * max_dist;
         let mut stack: Vec<u32> = Vec::with_capacity(64);
         stack.push(0);
         while let Some(i) = stack.pop() {
@@ -203,7 +226,7 @@ impl<'m> AabbTree<'m> {
                     let (q, bary, feat) = closest_point_triangle(p, &a, &b, &c);
                     let d2 = (q - p).norm_squared();
                     let better = match best {
-                        None => true,
+                        None => d2 <= best_d2,
                         Some((bd2, bf, ..)) => d2 < bd2 || (d2 == bd2 && f < bf),
                     };
                     if better {
@@ -581,7 +604,7 @@ impl AabbTree<'_> {
     /// mesh the sign is only meaningful near the surface. `None` as for [`Self::closest_point`].
     pub fn signed_distance(&self, normals: &PseudoNormals, p: &Point) -> Option<f64> {
         let c = self.closest_point(p)?;
-        let n = normals.of(self.mesh, c.face, c.feature);
+        let n = normals.of(&self.mesh, c.face, c.feature);
         let s = if (p - c.point).dot(&n) < 0.0 {
             -1.0
         } else {
@@ -796,6 +819,32 @@ mod tests {
             let sd = tree.signed_distance(&normals, p).unwrap();
             assert!((sd - expected).abs() < 1e-9, "{p}: {sd} vs {expected}");
         }
+    }
+
+    #[test]
+    fn bounded_query_is_the_closest_point_or_nothing() {
+        let m = cuboid(20.0, 30.0, 40.0);
+        let tree = AabbTree::new(&m);
+        let owned = AabbTree::owning(m.clone());
+        let mut rng = Rng::new(21);
+        let (mut hits, mut misses) = (0, 0);
+        for p in random_points(&m, 2000, 13) {
+            let c = tree.closest_point(&p).unwrap();
+            assert_eq!(owned.closest_point(&p), Some(c));
+            let r = rng.range(0.0, 30.0);
+            match tree.closest_point_within(&p, r) {
+                Some(b) => {
+                    assert!(c.distance <= r);
+                    assert_eq!(b, c);
+                    hits += 1;
+                }
+                None => {
+                    assert!(c.distance > r, "{p}: {} within {r}", c.distance);
+                    misses += 1;
+                }
+            }
+        }
+        assert!(hits > 100 && misses > 100, "{hits} hits, {misses} misses");
     }
 
     #[test]

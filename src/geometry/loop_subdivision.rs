@@ -102,7 +102,7 @@ impl Subdivision {
 /// Loop's original β rather than Warren's simplification (3/(8n)) because it gives the
 /// smoother limit surface (bounded curvature at regular vertices, best-behaved at the
 /// extraordinary ones) and has the closed-form limit position used in the tests.
-pub fn loop_beta(n: usize) -> f64 {
+pub(crate) fn loop_beta(n: usize) -> f64 {
     let n = n as f64;
     let c = 3.0 / 8.0 + 0.25 * (2.0 * PI / n).cos();
     (5.0 / 8.0 - c * c) / n

@@ -101,7 +101,7 @@ pub fn dihedral_angles(p: [Point; 4]) -> [f64; 6] {
 /// Circumradius over shortest edge of tetrahedron `abcd` (infinite for a flat one). The
 /// circumcentre offset from `a` is `(|u|² v×w + |v|² w×u + |w|² u×v) / (2 u·(v×w))` with
 /// `u, v, w` the edges from `a`.
-pub fn radius_edge_ratio(p: [Point; 4]) -> f64 {
+pub(crate) fn radius_edge_ratio(p: [Point; 4]) -> f64 {
     let (u, v, w) = (p[1] - p[0], p[2] - p[0], p[3] - p[0]);
     let det = 2.0 * u.dot(&v.cross(&w));
     let o = (v.cross(&w) * u.norm_squared()
@@ -171,7 +171,7 @@ impl TetMesh {
     }
 
     /// Signed volume of tetrahedron `t`, mm³.
-    pub fn tet_volume(&self, t: usize) -> f64 {
+    pub(crate) fn tet_volume(&self, t: usize) -> f64 {
         let [a, b, c, d] = self.corners(t);
         tet_signed_volume(&a, &b, &c, &d)
     }
@@ -191,7 +191,7 @@ impl TetMesh {
     /// Boundary faces: the faces that belong to exactly one tetrahedron, oriented outward
     /// (counter-clockwise seen from outside, as [`TriMesh`] expects), in a deterministic order
     /// (by tetrahedron, then by the corner each face is opposite).
-    pub fn boundary_faces(&self) -> Vec<[usize; 3]> {
+    pub(crate) fn boundary_faces(&self) -> Vec<[usize; 3]> {
         // Face opposite corner i of a positive tet, wound so its normal points away from i.
         const FACES: [[usize; 3]; 4] = [[1, 2, 3], [0, 3, 2], [0, 1, 3], [0, 2, 1]];
         // Sort the sorted-corner keys of all faces: a face is on the boundary when its key

@@ -34,7 +34,7 @@ pub struct Cores {
 }
 
 /// Distance from `p` to the segment `a..b`, and the segment parameter of the closest point.
-pub fn segment_distance(p: &Point, a: &Point, b: &Point) -> (f64, f64) {
+pub(crate) fn segment_distance(p: &Point, a: &Point, b: &Point) -> (f64, f64) {
     let ab: Vec3 = b - a;
     let l2 = ab.norm_squared();
     let s = if l2 > 0.0 {

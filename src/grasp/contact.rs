@@ -1,6 +1,6 @@
 //! Contacts between the posed skin and the part, from parry point queries.
 //!
-//! The part is a parry [`parry3d_f64::shape::TriMesh`] with its BVH and, when it is a closed
+//! The part is indexed by the toolkit's face tree ([`AabbTree`]) and, when it is a closed
 //! oriented 2-manifold, angle-weighted pseudo-normals (Bærentzen & Aanæs 2005), which make the
 //! projection of a point tell inside from outside; both are built once per part. A voxel broad
 //! phase ([`super::broad::NearGrid`]) answers most skin vertices without a query: only those
@@ -15,10 +15,8 @@
 use super::broad::{NearGrid, Zone};
 use crate::anatomy::{Finger, Link};
 use crate::error::{Error, Result};
+use crate::geometry::closest_point::{AabbTree, PseudoNormals};
 use crate::geometry::{Point, TriMesh, Vec3};
-use parry3d_f64::math::Vector as PVec;
-use parry3d_f64::query::{PointQuery, PointQueryWithLocation};
-use parry3d_f64::shape::{TriMesh as PTriMesh, TriMeshFlags};
 use rayon::prelude::*;
 use serde::Serialize;
 use std::collections::BTreeMap;
@@ -27,8 +25,10 @@ use std::collections::BTreeMap;
 pub struct PartShape {
     /// Surface, mm.
     pub mesh: TriMesh,
-    /// parry mesh with BVH (and pseudo-normals when closed).
-    pub shape: PTriMesh,
+    /// Closest-point and ray index over a copy of `mesh`.
+    pub tree: AabbTree<'static>,
+    /// Pseudo-normals of `mesh` for the inside test (only when `closed`).
+    normals: Option<PseudoNormals>,
     /// Unit outward face normals of `mesh`.
     pub face_normals: Vec<Vec3>,
     /// Whether inside tests are available (closed, oriented 2-manifold).
@@ -47,7 +47,7 @@ pub struct PartShape {
 
 /// Band of the broad phase, mm: queries with a search radius up to this skip the exact
 /// projection of every point the grid puts outside the band.
-pub const GRID_BAND_MM: f64 = 3.0;
+pub(crate) const GRID_BAND_MM: f64 = 3.0;
 
 /// A point against the part, from [`PartShape::probe`].
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -56,20 +56,14 @@ pub enum Probe {
     Far,
     /// Inside the closed part, deeper than the search radius.
     Deep,
-    /// Within the search radius: signed distance (negative inside), projection, face normal.
+    /// Within the search radius: signed distance (negative inside), projection, and the outward
+    /// unit normal there (the closest feature's pseudo-normal on a closed part, the face normal
+    /// on an open one).
     Hit(f64, Point, Vec3),
 }
 
-pub(crate) fn pv(p: &Point) -> PVec {
-    PVec::new(p.x, p.y, p.z)
-}
-
-pub(crate) fn np(v: PVec) -> Point {
-    Point::new(v.x, v.y, v.z)
-}
-
 /// Centre of mass of the solid bounded by a closed mesh (signed tetrahedra from the origin).
-pub fn solid_centroid(mesh: &TriMesh) -> Option<Point> {
+pub(crate) fn solid_centroid(mesh: &TriMesh) -> Option<Point> {
     let mut v = 0.0;
     let mut c = Vec3::zeros();
     for f in 0..mesh.n_faces() {
@@ -104,19 +98,8 @@ impl PartShape {
                 false
             }
         };
-        let verts: Vec<PVec> = mesh.vertices.iter().map(pv).collect();
-        let idx: Vec<[u32; 3]> = mesh
-            .faces
-            .iter()
-            .map(|f| [f[0] as u32, f[1] as u32, f[2] as u32])
-            .collect();
-        let flags = if closed {
-            TriMeshFlags::ORIENTED
-        } else {
-            TriMeshFlags::empty()
-        };
-        let shape = PTriMesh::with_flags(verts, idx, flags)
-            .map_err(|e| Error::invalid(format!("part: parry cannot build the mesh: {e:?}")))?;
+        let tree = AabbTree::owning(mesh.clone());
+        let normals = closed.then(|| PseudoNormals::new(&mesh));
         let com = if closed {
             solid_centroid(&mesh).unwrap_or_else(|| mesh.vertex_centroid())
         } else {
@@ -141,7 +124,8 @@ impl PartShape {
             PartShape {
                 face_normals: mesh.face_normals(),
                 mesh,
-                shape,
+                tree,
+                normals,
                 closed,
                 centre_of_mass: com,
                 max_radius,
@@ -180,8 +164,8 @@ impl PartShape {
             None => match self.grid.zone(p) {
                 Zone::Outside => Probe::Far,
                 Zone::Inside => Probe::Deep,
-                // Beyond the search radius, on a side only parry can tell.
-                Zone::Near if self.shape.contains_local_point(pv(p)) => Probe::Deep,
+                // Beyond the search radius, on a side only the exact query can tell.
+                Zone::Near if self.inside(p) => Probe::Deep,
                 Zone::Near => Probe::Far,
             },
         }
@@ -189,8 +173,22 @@ impl PartShape {
 
     /// Unsigned distance to the surface with no bound (for messages about deep points).
     pub fn distance(&self, p: &Point) -> f64 {
-        let proj = self.shape.project_local_point(pv(p), false);
-        (np(proj.point) - p).norm()
+        self.tree.distance(p).unwrap_or(f64::INFINITY)
+    }
+
+    /// Whether `p` is inside the closed part (always `false` for an open one).
+    fn inside(&self, p: &Point) -> bool {
+        self.normals
+            .as_ref()
+            .and_then(|n| self.tree.signed_distance(n, p))
+            .is_some_and(|d| d < 0.0)
+    }
+
+    /// First hit of the ray `origin + t * dir` (either side of a face), as `t`.
+    pub fn ray_cast(&self, origin: &Point, dir: &Vec3) -> Option<f64> {
+        self.tree
+            .ray_cast(origin, dir, 0.0, f64::INFINITY)
+            .map(|h| h.t)
     }
 
     fn exact(&self, p: &Point, max_dist: f64) -> Option<(f64, Point, Vec3)> {
@@ -199,14 +197,19 @@ impl PartShape {
                 return None;
             }
         }
-        let (proj, (tri, _)) = self
-            .shape
-            .project_local_point_and_get_location_with_max_dist(pv(p), false, max_dist)?;
-        let q = np(proj.point);
-        let d = (p - q).norm();
-        let inside = self.closed && proj.is_inside;
-        let n = self.face_normals[tri as usize];
-        Some((if inside { -d } else { d }, q, n))
+        let c = self.tree.closest_point_within(p, max_dist)?;
+        let d = c.distance;
+        match &self.normals {
+            // The closest feature's pseudo-normal: the sign, and a normal that does not depend
+            // on which of the faces meeting at an edge or corner the query happened to name.
+            Some(normals) => {
+                let n = normals.of(&self.mesh, c.face, c.feature);
+                let inside = (p - c.point).dot(&n) < 0.0;
+                let n = n.try_normalize(1e-12).unwrap_or(self.face_normals[c.face]);
+                Some((if inside { -d } else { d }, c.point, n))
+            }
+            None => Some((d, c.point, self.face_normals[c.face])),
+        }
     }
 }
 
@@ -343,7 +346,7 @@ pub fn contacts(
 }
 
 /// [`contacts`] from already computed per-vertex queries.
-pub fn contacts_from(
+pub(crate) fn contacts_from(
     q: &[Option<(f64, Point, Vec3)>],
     _points: &[Point],
     links: &[usize],

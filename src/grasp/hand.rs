@@ -91,7 +91,7 @@ impl RigidHand {
 }
 
 /// Pose `rest` rigidly: vertex `i` moves by `transforms[links[i]]`.
-pub fn pose_rigid(
+pub(crate) fn pose_rigid(
     rest: &[Point],
     links: &[usize],
     transforms: &[Isometry3<f64>],

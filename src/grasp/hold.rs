@@ -20,14 +20,14 @@ use rapier3d_f64::prelude::*;
 use serde::Serialize;
 
 /// Displacement over which the part counts as dropped, mm.
-pub const HOLD_LIMIT_MM: f64 = 2.0;
+pub(crate) const HOLD_LIMIT_MM: f64 = 2.0;
 
 /// Steps (1/240 s, so 0.4 s) without gravity before each trial, to let the solver resolve
 /// the initial overlap of skin and part. The squeezed part needs this long to come to rest
 /// between the fingers (after 0.1 s the demo hand's bottle was still moving: it passed 2 mm
 /// within 0.2 s of the trial in two directions and stayed within 0.25 mm after a 0.4 s
 /// settle).
-pub const SETTLE_STEPS: usize = 96;
+pub(crate) const SETTLE_STEPS: usize = 96;
 
 /// One direction of gravity.
 #[derive(Clone, Debug, PartialEq, Serialize)]
@@ -56,19 +56,19 @@ fn v(p: &Point) -> Vector {
 }
 
 /// rapier's length unit for hand-sized scenes, m (scales its contact tolerances).
-pub const LENGTH_UNIT_M: f64 = 0.05;
+pub(crate) const LENGTH_UNIT_M: f64 = 0.05;
 
 /// Natural frequency of rapier's contact springs in the hold test, Hz (critically damped).
-pub const CONTACT_HZ: f64 = 60.0;
+pub(crate) const CONTACT_HZ: f64 = 60.0;
 
 /// Radius of the balls that stand for the skin in [`hold_test_hand`], mm.
-pub const SKIN_BALL_MM: f64 = 1.5;
+pub(crate) const SKIN_BALL_MM: f64 = 1.5;
 
 /// Skin within this distance of the part gets balls, mm (the contact tolerance and a half).
-pub const BALL_BAND_MM: f64 = 1.5;
+pub(crate) const BALL_BAND_MM: f64 = 1.5;
 
 /// One ball per link per cell of this size, mm.
-pub const BALL_CELL_MM: f64 = 3.0;
+pub(crate) const BALL_CELL_MM: f64 = 3.0;
 
 /// The hold test of a posed hand (`posed`: the skin in rest vertex order, faces of the rest
 /// mesh). The skin in contact (vertices within [`BALL_BAND_MM`] of the part or inside it, one

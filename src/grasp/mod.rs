@@ -36,7 +36,7 @@ use std::collections::BTreeMap;
 use std::path::Path;
 
 /// Read a part mesh in its unit (by extension: `.obj`, `.stl`, `.gltf`/`.glb`), in mm.
-pub fn read_part(path: &Path, units: Units) -> Result<TriMesh> {
+pub(crate) fn read_part(path: &Path, units: Units) -> Result<TriMesh> {
     let ext = path
         .extension()
         .and_then(|e| e.to_str())
@@ -205,7 +205,7 @@ pub struct GraspOutcome {
 }
 
 /// Distances shown by the contact map's colour ramp, mm.
-pub const COLOUR_RANGE_MM: f64 = 10.0;
+pub(crate) const COLOUR_RANGE_MM: f64 = 10.0;
 
 /// One grasp of a scene from one approach: closed, squeezed, measured and hold-tested.
 struct Attempt {

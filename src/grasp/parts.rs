@@ -49,7 +49,7 @@ impl Part {
     }
 
     /// Stated bounding-box size (x, y, z), mm.
-    pub fn size_mm(self) -> [f64; 3] {
+    pub(crate) fn size_mm(self) -> [f64; 3] {
         match self {
             Part::Bottle => [60.0, 60.0, 200.0],
             Part::Phone => [71.0, 147.0, 8.0],
@@ -277,7 +277,7 @@ impl PartCleaning {
 /// Relative weld tolerance of [`clean_part`]: vertices within this fraction of the part's
 /// bounding-box diagonal count as one when faces are compared (1e-6: 0.2 um on a 200 mm part,
 /// far below any modelled feature, above the rounding of 32-bit STL coordinates).
-pub const WELD_TOLERANCE: f64 = 1e-6;
+pub(crate) const WELD_TOLERANCE: f64 = 1e-6;
 
 /// A part mesh as the grasp checks need it: faces repeating an earlier face (the same three
 /// vertices once welded within [`WELD_TOLERANCE`] x the diagonal, in either orientation: a

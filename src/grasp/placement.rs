@@ -14,14 +14,9 @@ use nalgebra::{Isometry3, Rotation3, Translation3, UnitQuaternion};
 /// A candidate placement: the grasp frame looks along `-dir` at the part from just outside its
 /// surface, rolled by `roll` about its z axis.
 pub fn placement(part: &PartShape, dir: &Vec3, roll: f64, gap_mm: f64) -> Option<Isometry3<f64>> {
-    use parry3d_f64::query::{Ray, RayCast};
     let d = dir.try_normalize(1e-12)?;
     let far = part.centre_of_mass + d * (part.max_radius + 50.0);
-    let ray = Ray::new(
-        super::contact::pv(&far),
-        super::contact::pv(&Point::from(-d)),
-    );
-    let toi = part.shape.cast_local_ray(&ray, f64::MAX, false)?;
+    let toi = part.ray_cast(&far, &-d)?;
     let hit = far - d * toi;
     let z = -d;
     let helper = if z.z.abs() < 0.9 {
@@ -51,15 +46,10 @@ pub fn pad_placement(
     roll: f64,
     pad: &Vec3,
 ) -> Option<Isometry3<f64>> {
-    use parry3d_f64::query::{Ray, RayCast};
     let entry = placement(part, dir, roll, 0.0)?;
     let d = dir.try_normalize(1e-12)?;
     let far = part.centre_of_mass - d * (part.max_radius + 50.0);
-    let ray = Ray::new(
-        super::contact::pv(&far),
-        super::contact::pv(&Point::from(d)),
-    );
-    let exit = far + d * part.shape.cast_local_ray(&ray, f64::MAX, false)?;
+    let exit = far + d * part.ray_cast(&far, &d)?;
     let centre = Point::from((entry.translation.vector + exit.coords) / 2.0);
     Some(Isometry3::from_parts(
         Translation3::from(centre.coords - entry.rotation * pad),
@@ -80,17 +70,12 @@ pub fn support_placement(
     pad: &Vec3,
     press: &Vec3,
 ) -> Option<Isometry3<f64>> {
-    use parry3d_f64::query::{Ray, RayCast};
     let rot = placement(part, dir, roll, 0.0)?.rotation;
     let d = (rot * press).try_normalize(1e-12)?;
     // From beyond the part on the far side of the support, back toward it: the first hit is
     // the face the support touches.
     let far = part.centre_of_mass + d * (part.max_radius + 50.0);
-    let ray = Ray::new(
-        super::contact::pv(&far),
-        super::contact::pv(&Point::from(-d)),
-    );
-    let hit = far - d * part.shape.cast_local_ray(&ray, f64::MAX, false)?;
+    let hit = far - d * part.ray_cast(&far, &-d)?;
     Some(Isometry3::from_parts(
         Translation3::from(hit.coords - rot * pad),
         rot,
@@ -116,15 +101,15 @@ pub struct PlacementResult {
 }
 
 /// Skin vertex stride of the placement search's screening (closing checks and contacts).
-pub const SCREEN_STRIDE: usize = 4;
+pub(crate) const SCREEN_STRIDE: usize = 4;
 
 /// Friction cone edges of the screening quality (a subset of the full cone's edges, so its
 /// epsilon is a lower bound of the full one's).
-pub const SCREEN_CONE_EDGES: usize = 4;
+pub(crate) const SCREEN_CONE_EDGES: usize = 4;
 
 /// Screened candidates whose full evaluation decides (taken down the screening ranking,
 /// skipping those the full autograsp refuses).
-pub const FINALISTS: usize = 6;
+pub(crate) const FINALISTS: usize = 6;
 
 /// Whether any skin vertex at the preshape of `plan` from `root` lies inside the part deeper
 /// than the broad phase's band (every vertex, by the voxel grid alone: the autograsp would

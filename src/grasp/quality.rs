@@ -26,11 +26,16 @@ use serde::Serialize;
 pub const CONE_EDGES: usize = 8;
 
 /// A 6-D wrench `[fx, fy, fz, τx/ρ, τy/ρ, τz/ρ]`.
-pub type Wrench = Vector6<f64>;
+pub(crate) type Wrench = Vector6<f64>;
 
 /// The wrenches of the linearised friction cones ([`CONE_EDGES`] edges) of `contacts` on a
 /// part with centre of mass `com` and torque scale `rho` (mm).
-pub fn contact_wrenches(contacts: &[Contact], mu: f64, com: &Point, rho: f64) -> Vec<Wrench> {
+pub(crate) fn contact_wrenches(
+    contacts: &[Contact],
+    mu: f64,
+    com: &Point,
+    rho: f64,
+) -> Vec<Wrench> {
     cone_wrenches(contacts, mu, com, rho, CONE_EDGES)
 }
 

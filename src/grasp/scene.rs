@@ -10,8 +10,10 @@
 //! friction = 0.5                 # Coulomb coefficient between skin and part
 //! mass_g = 350                   # grams
 //!
-//! [part.markers]                 # optional: markers on the part, mm, in the part file's frame
-//! PART_1 = [0.0, 30.0, 180.0]    #   (spec section 5: `ergohand track` follows the part by them)
+//! [part.markers]                 # optional: motion-capture markers on the part (`PART_1`..
+//! PART_1 = [0.0, 0.0, 204.0]     #   `PART_n`, three or more), mm, in the part file's frame,
+//! PART_2 = [24.0, 0.0, 170.0]    #   whatever its `units`; a motion trial that carries them
+//! PART_3 = [-14.0, 19.2, 170.0]  #   gives the part's pose frame by frame
 //!
 //! [hand]                         # optional table
 //! model = "../out"               # a `reconstruct` output folder; omitted: the template hand
@@ -119,8 +121,8 @@ pub struct Scene {
     pub candidates: usize,
     /// Placement search time bound, s.
     pub time_limit_s: f64,
-    /// `[part.markers]`: marker name -> position in the part file's frame, mm (empty when
-    /// not given).
+    /// `[part.markers]`: marker name (`PART_<n>`) -> position in the part file's frame, mm;
+    /// empty when the scene names none.
     pub part_markers: BTreeMap<String, Point>,
 }
 
@@ -198,7 +200,7 @@ pub fn read_scene(path: &Path) -> Result<Scene> {
 }
 
 /// Parse scene `text` read from `path` (relative paths resolve against its folder).
-pub fn parse_scene(text: &str, path: &Path) -> Result<Scene> {
+pub(crate) fn parse_scene(text: &str, path: &Path) -> Result<Scene> {
     let raw: RawScene = toml::from_str(text).map_err(|e| Error::toml(path, text, &e))?;
     let dir = path.parent().unwrap_or(Path::new("."));
     let p = &raw.part;
@@ -229,21 +231,6 @@ pub fn parse_scene(text: &str, path: &Path) -> Result<Scene> {
         return Err(Error::input(
             path,
             "part.file is empty; name the part's mesh file",
-        ));
-    }
-    let mut part_markers = BTreeMap::new();
-    for (name, v) in &p.markers {
-        finite(path, &format!("part.markers.{name}"), v)?;
-        // Millimetres whatever the mesh's unit (spec section 5).
-        part_markers.insert(name.clone(), Point::new(v[0], v[1], v[2]));
-    }
-    if !part_markers.is_empty() && part_markers.len() < 3 {
-        return Err(Error::input(
-            path,
-            format!(
-                "part.markers has {} marker(s); the part's pose needs three or more",
-                part_markers.len()
-            ),
         ));
     }
     let (hand_model, side) = match &raw.hand {
@@ -301,6 +288,7 @@ pub fn parse_scene(text: &str, path: &Path) -> Result<Scene> {
             "grasp.candidates must be in 1..=1000000",
         ));
     }
+    let part_markers = part_markers(path, &p.markers)?;
     let time_limit_s = g.time_limit_s.unwrap_or(15.0);
     if !(time_limit_s.is_finite() && time_limit_s > 0.0) {
         return Err(Error::input(
@@ -324,6 +312,48 @@ pub fn parse_scene(text: &str, path: &Path) -> Result<Scene> {
         time_limit_s,
         part_markers,
     })
+}
+
+/// Check `[part.markers]`: names `PART_<n>` (n >= 1), finite positions, none or at least three
+/// (a rigid body's pose needs three), not all on one line.
+fn part_markers(path: &Path, raw: &BTreeMap<String, [f64; 3]>) -> Result<BTreeMap<String, Point>> {
+    let mut out = BTreeMap::new();
+    for (name, v) in raw {
+        let numbered = name
+            .strip_prefix("PART_")
+            .and_then(|n| n.parse::<u32>().ok())
+            .is_some_and(|n| n >= 1 && name == &format!("PART_{n}"));
+        if !numbered {
+            return Err(Error::input(
+                path,
+                format!("part.markers: '{name}' is not named PART_1, PART_2, ..."),
+            ));
+        }
+        finite(path, &format!("part.markers.{name}"), v)?;
+        out.insert(name.clone(), Point::new(v[0], v[1], v[2]));
+    }
+    if !out.is_empty() && out.len() < 3 {
+        return Err(Error::input(
+            path,
+            format!(
+                "part.markers: {} marker(s); a part's pose needs three or more",
+                out.len()
+            ),
+        ));
+    }
+    let pts: Vec<Point> = out.values().copied().collect();
+    let n = pts.len();
+    let off_a_line = (0..n).any(|i| {
+        (i + 1..n)
+            .any(|j| (j + 1..n).any(|k| (pts[j] - pts[i]).cross(&(pts[k] - pts[i])).norm() > 1.0))
+    });
+    if n >= 3 && !off_a_line {
+        return Err(Error::input(
+            path,
+            "part.markers: the markers lie on one line; a part's pose needs three off a line",
+        ));
+    }
+    Ok(out)
 }
 
 #[cfg(test)]
@@ -356,29 +386,37 @@ approach = { translation_mm = [0, -50, 100], rotation_deg = [90, 0, 0] }
             }
             Approach::Auto => panic!("given approach read as auto"),
         }
-        assert!(s.part_markers.is_empty());
     }
 
     #[test]
-    fn part_markers_are_read_in_mm() {
-        let text = OK.replace(
-            "mass_g = 350",
-            "mass_g = 350\n[part.markers]\nPART_1 = [0.0, 30.0, 180.0]\nPART_2 = [26.0, -15.0, 180.0]\n\
-             PART_3 = [-26, -15, 180]",
+    fn part_markers_are_optional_and_checked() {
+        let p = Path::new("s.toml");
+        assert!(parse_scene(OK, p).unwrap().part_markers.is_empty());
+        let with = OK.replace(
+            "mass_g = 350\n",
+            "mass_g = 350\n[part.markers]\nPART_1 = [0, 30, 180]\nPART_2 = [26, -15, 180]\nPART_3 = [-26.5, -15, 180]\n",
         );
-        let s = parse_scene(&text, Path::new("s.toml")).unwrap();
+        let s = parse_scene(&with, p).unwrap();
         assert_eq!(s.part_markers.len(), 3);
-        assert_eq!(s.part_markers["PART_3"], Point::new(-26.0, -15.0, 180.0));
-        let two = text.replace("PART_3 = [-26, -15, 180]", "");
-        let e = parse_scene(&two, Path::new("s.toml"))
-            .unwrap_err()
-            .to_string();
-        assert!(e.contains("part.markers") && e.contains("three"), "{e}");
-        let bad = text.replace("[-26, -15, 180]", "[-26, nan, 180]");
-        let e = parse_scene(&bad, Path::new("s.toml"))
-            .unwrap_err()
-            .to_string();
-        assert!(e.contains("part.markers.PART_3"), "{e}");
+        assert_eq!(s.part_markers["PART_3"], Point::new(-26.5, -15.0, 180.0));
+        for (bad, key) in [
+            (with.replace("PART_3 = [-26.5, -15, 180]\n", ""), "three"),
+            (with.replace("PART_3", "MARK_3"), "MARK_3"),
+            (with.replace("PART_3", "PART_03"), "PART_03"),
+            (
+                with.replace("[-26.5, -15, 180]", "[-26.5, -15]"),
+                "length 3",
+            ),
+            (
+                with.replace("[-26.5, -15, 180]", "[-26, 75, 180]"),
+                "one line",
+            ),
+            (with.replace("[-26.5, -15, 180]", "[nan, 1, 1]"), "PART_3"),
+        ] {
+            let e = parse_scene(&bad, p).unwrap_err().to_string();
+            assert!(e.contains("s.toml") && e.contains(key), "{key}: {e}");
+            assert!(!e.contains('\n'), "{e}");
+        }
     }
 
     #[test]

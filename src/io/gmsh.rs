@@ -13,7 +13,7 @@ use crate::geometry::tet_mesh::TetMesh;
 use std::path::Path;
 
 /// Gmsh's element type of the 4-node tetrahedron.
-pub const GMSH_TETRAHEDRON: u32 = 4;
+pub(crate) const GMSH_TETRAHEDRON: u32 = 4;
 
 /// Write `mesh` (mm) as Gmsh MSH 4.1 ASCII with coordinates in `units`.
 pub fn write_msh(path: &Path, mesh: &TetMesh, units: Units) -> Result<()> {

@@ -32,7 +32,7 @@ pub fn read_obj(path: &Path, units: Units) -> Result<TriMesh> {
 /// line and the face or vertex: a bad number, a non-finite coordinate, index 0, an index out
 /// of range, a face with fewer than three vertices or one that repeats a vertex, a file with no
 /// face.
-pub fn read_obj_bytes(bytes: &[u8], units: Units, label: &Path) -> Result<TriMesh> {
+pub(crate) fn read_obj_bytes(bytes: &[u8], units: Units, label: &Path) -> Result<TriMesh> {
     let err = |line: usize, msg: String| Error::input(label, format!("line {line}: {msg}"));
     let scale = units.to_mm();
     let mut vertices: Vec<Point> = Vec::new();

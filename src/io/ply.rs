@@ -43,7 +43,7 @@ pub fn read_ply(path: &Path, units: Units) -> Result<PlyMesh> {
 /// the header line; body errors name the element row (and, for ASCII, the line). Polygons are
 /// fan-triangulated `(0, i, i+1)`; a face with fewer than three vertices, a repeated vertex in
 /// a triangle or an index out of range is an error, as is a non-finite coordinate.
-pub fn read_ply_bytes(bytes: &[u8], units: Units, label: &Path) -> Result<PlyMesh> {
+pub(crate) fn read_ply_bytes(bytes: &[u8], units: Units, label: &Path) -> Result<PlyMesh> {
     let err = |msg: String| Error::input(label, msg);
     let header = parse_header(bytes).map_err(err)?;
     let body = &bytes[header.body_start..];

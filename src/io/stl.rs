@@ -34,7 +34,7 @@ pub fn read_stl(path: &Path, units: Units) -> Result<TriMesh> {
 /// is a binary file whose size disagrees with its count, reported as such before any
 /// allocation. Exact duplicate corners are welded (as [`TriMesh::weld`] with `tol = 0`, first
 /// occurrence kept) and triangles that collapse under welding are dropped.
-pub fn read_stl_bytes(bytes: &[u8], units: Units, label: &Path) -> Result<TriMesh> {
+pub(crate) fn read_stl_bytes(bytes: &[u8], units: Units, label: &Path) -> Result<TriMesh> {
     let soup = if binary_size_matches(bytes) {
         read_binary(bytes, label)?
     } else if looks_ascii(bytes) {

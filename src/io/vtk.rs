@@ -15,7 +15,7 @@ use crate::geometry::Point;
 use std::path::Path;
 
 /// VTK's cell type id of the linear tetrahedron.
-pub const VTK_TETRA: u32 = 10;
+pub(crate) const VTK_TETRA: u32 = 10;
 
 /// Write `mesh` (mm) as a legacy ASCII VTK unstructured grid with coordinates in `units`, with
 /// a cell scalar `min_dihedral_deg` (each tetrahedron's smallest dihedral angle).
@@ -62,7 +62,7 @@ pub fn read_vtk(path: &Path, units: Units) -> Result<TetMesh> {
 /// Parse legacy VTK bytes (see [`read_vtk`]); `label` names the source in errors. Only ASCII
 /// files whose cells are all `VTK_TETRA` are accepted; data sections after `CELL_TYPES` are
 /// ignored. Counts are checked against the file length before anything is allocated.
-pub fn read_vtk_bytes(bytes: &[u8], units: Units, label: &Path) -> Result<TetMesh> {
+pub(crate) fn read_vtk_bytes(bytes: &[u8], units: Units, label: &Path) -> Result<TetMesh> {
     let err = |msg: String| Error::input(label, msg);
     let text = std::str::from_utf8(bytes).map_err(|e| {
         err(format!(

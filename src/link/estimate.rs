@@ -39,34 +39,34 @@ use std::collections::BTreeMap;
 /// determined. The seed paper's calibration motions reach about 80° at the MCPs, 55° at the
 /// thumb CMC and 60° at the wrist; a joint that moved less than about half of that gives
 /// centres whose error grows quickly (Ehrig et al. 2006; `small-rom` in the suite).
-pub const MIN_ROM_3DOF_DEG: f64 = 45.0;
+pub(crate) const MIN_ROM_3DOF_DEG: f64 = 45.0;
 
 /// A 1-DOF joint that flexed less than this (degrees) is flagged (the protocol reaches about
 /// 100° at PIP, 70° at DIP and IP, 50° at the thumb MCP).
-pub const MIN_ROM_1DOF_DEG: f64 = 45.0;
+pub(crate) const MIN_ROM_1DOF_DEG: f64 = 45.0;
 
 /// Below this ratio of the smallest to the largest principal spread, the child's motion is too
 /// planar for a sphere fit (a hinge-like motion at a 3-DOF joint): flagged.
-pub const MIN_SPHERE_CONDITION: f64 = 0.02;
+pub(crate) const MIN_SPHERE_CONDITION: f64 = 0.02;
 
 /// A joint whose child moved less than this (degrees) relative to its parent is refused: the
 /// trial is static for that joint and no centre can be estimated.
-pub const MIN_ROM_HARD_DEG: f64 = 5.0;
+pub(crate) const MIN_ROM_HARD_DEG: f64 = 5.0;
 
 /// Trials shorter than this are refused (seconds).
-pub const MIN_TRIAL_S: f64 = 1.0;
+pub(crate) const MIN_TRIAL_S: f64 = 1.0;
 
 /// The soft-tissue model's centre ([`super::sta_model`]) is used only when its predicted
 /// standard deviation (off a hinge's axis) is at most this, mm; otherwise the slides and the
 /// centre are confounded in this motion and the rigid estimator is kept (see [`choose`]).
-pub const MAX_STA_CENTRE_SD_MM: f64 = 0.25;
+pub(crate) const MAX_STA_CENTRE_SD_MM: f64 = 0.25;
 
 /// Whether the soft-tissue model's centre may be chosen at all. Off: on the suite it lowered
 /// the typical hands' mean centre error by only 0.06 mm (1.00 -> 0.94 mm, better on 7 of 8) but
 /// raised the noisy hands' 1-DOF median from 2.5 to 3.1 mm, and it leaves the repeatability
 /// where it was (README, "Link model"). It is always fitted and reported
 /// (`diagnostics.sta`, `alternatives["score-sta"/"sara-sta"]`) so the choice can be revisited.
-pub const STA_BY_DEFAULT: bool = false;
+pub(crate) const STA_BY_DEFAULT: bool = false;
 
 impl StaDiagnostics {
     fn new(fit: &StaFit, drivers: Vec<String>, used: bool) -> Self {
@@ -221,7 +221,7 @@ fn joint_angles(poses: &[Option<Isometry3<f64>>]) -> Vec<Option<Vec<f64>>> {
 
 /// A neighbour's angle coordinate enters the soft-tissue model only if the joint's own angles
 /// explain less than this fraction of it (uncentred R² of a least-squares fit over the frames).
-pub const MAX_DRIVER_R2: f64 = 0.5;
+pub(crate) const MAX_DRIVER_R2: f64 = 0.5;
 
 /// The columns of `drivers` that may enter the soft-tissue model of the joint whose own angles
 /// are `own`: not its own angles (a slide that follows a joint's own angle is kinematically a
@@ -615,7 +615,7 @@ fn estimate_local(
 /// Assumed SD of a landmark's placement along the skin off its anatomical point, mm: palpation
 /// by eye and touch is millimetre work (the spec: "expect a few mm" for the palm markers).
 /// Used only for the level's uncertainty when a single cue gives it.
-pub const LANDMARK_SD_MM: f64 = 1.0;
+pub(crate) const LANDMARK_SD_MM: f64 = 1.0;
 
 /// Length of the blocks of frames the bootstrap resamples, seconds: longer than the
 /// correlation of marker noise and gaps, short enough for tens of blocks per trial.
@@ -688,12 +688,12 @@ fn replicate_sd(points: &[Option<Point>]) -> Option<f64> {
 
 /// How long after the reference frame the calibration protocol holds the reference posture,
 /// seconds: each trial starts seated still (seed paper section 3.3).
-pub const HELD_S: f64 = 1.0;
+pub(crate) const HELD_S: f64 = 1.0;
 
 /// Largest turn of a child link (relative to its parent) between the start and the end of
 /// what is taken as the held reference posture, degrees, each end averaged over a fifth of it:
 /// above what marker noise fakes on finger plates, below any calibration motion.
-pub const HELD_DEG: f64 = 3.0;
+pub(crate) const HELD_DEG: f64 = 3.0;
 
 /// The mean of rigid poses, rotations averaged as quaternions and the images of `pivot`
 /// apart (to first order the mean map near `pivot`, whatever the lab coordinates' origin).
@@ -880,7 +880,7 @@ pub fn estimate_link_model_from(
 const BOOTSTRAP_SEED: u64 = 0x6c69_6e6b;
 
 /// [`estimate_link_model_from`] with the choices of `opts`.
-pub fn estimate_link_model_from_with(
+pub(crate) fn estimate_link_model_from_with(
     hand: Side,
     rf: usize,
     trials: &BTreeMap<String, Trajectories>,

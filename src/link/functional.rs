@@ -44,7 +44,7 @@ pub struct ScoreFit {
 impl ScoreFit {
     /// The centre in world coordinates for a pair of segment poses (e.g. any other frame): the
     /// midpoint of the parent's and the child's estimate.
-    pub fn centre_at(&self, parent: &Isometry3<f64>, child: &Isometry3<f64>) -> Point {
+    pub(crate) fn centre_at(&self, parent: &Isometry3<f64>, child: &Isometry3<f64>) -> Point {
         Point::from(
             (parent * self.parent_local).coords * 0.5 + (child * self.child_local).coords * 0.5,
         )

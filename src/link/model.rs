@@ -149,7 +149,7 @@ struct LinkModelFile<'a> {
 
 /// A link's length between its joints' centres and its bootstrap SD, in `link_model.json`.
 #[derive(Clone, Debug, PartialEq, Serialize, serde::Deserialize)]
-pub struct LinkLength {
+pub(crate) struct LinkLength {
     /// Distance between the centres, mm.
     pub length_mm: f64,
     /// Bootstrap SD of that distance, mm.

@@ -8,7 +8,7 @@ use crate::mocap::trajectories::Trajectories;
 
 /// A frame is dropped as an outlier when its registration residual exceeds this multiple of the
 /// trial's median residual (and [`OUTLIER_FLOOR_MM`]): a marker swap or a bad reconstruction.
-pub const OUTLIER_FACTOR: f64 = 5.0;
+pub(crate) const OUTLIER_FACTOR: f64 = 5.0;
 /// Residuals below this are never outliers, whatever the median (clean data has a median of 0).
 pub const OUTLIER_FLOOR_MM: f64 = 0.5;
 

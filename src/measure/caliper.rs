@@ -49,11 +49,11 @@ pub type Measured = std::result::Result<f64, String>;
 
 /// Half-width of a caliper jaw resting on the 3rd metacarpal head, mm (a sliding caliper's jaw
 /// is about 10 mm wide).
-pub const JAW_HALF_WIDTH_MM: f64 = 5.0;
+pub(crate) const JAW_HALF_WIDTH_MM: f64 = 5.0;
 
 /// Half-height of the band about the metacarpal landmarks' dorsal-palmar level kept for the
 /// diagonal hand breadth when the thumb joins the palm's section, mm.
-pub const BREADTH_BAND_MM: f64 = 5.0;
+pub(crate) const BREADTH_BAND_MM: f64 = 5.0;
 
 /// Every dimension of `skin` (a closed surface, mm) with the joints of `skeleton` and the
 /// landmark skin points `landmarks` (spec names -> points on the skin: `WRIST_RAD`,
@@ -112,7 +112,7 @@ pub fn measure_dimensions(
 
 /// The closed loop of `loops` that encloses `q` (projected into `plane`); the innermost one
 /// (smallest area) when several do.
-pub fn enclosing_loop<'a>(
+pub(crate) fn enclosing_loop<'a>(
     loops: &'a [SectionLoop],
     plane: &Plane,
     q: &Point,
@@ -130,7 +130,7 @@ pub fn enclosing_loop<'a>(
 /// optionally only over the part with `slab.0 · (p − origin)` within `[slab.1, slab.2]`
 /// (segments are clipped at the slab's faces, so the clipped ends count). `None` when nothing
 /// of the loop lies in the slab.
-pub fn loop_extent(
+pub(crate) fn loop_extent(
     l: &SectionLoop,
     origin: &Point,
     along: &Vec3,
@@ -146,7 +146,7 @@ pub fn loop_extent(
 /// Extent of a closed loop along `along` over the part of it inside every half-space
 /// `n · (p − origin) <= h` of `half_spaces` (segments clipped at their faces, so the clipped
 /// ends count). `None` when nothing of the loop is inside.
-pub fn loop_extent_clipped(
+pub(crate) fn loop_extent_clipped(
     l: &SectionLoop,
     origin: &Point,
     along: &Vec3,
@@ -191,7 +191,7 @@ pub fn loop_extent_clipped(
 /// Breadth and thickness of the section of `skin` by `plane`: the loop enclosing `inside`, its
 /// extent along `breadth` projected into the plane, and along the in-plane perpendicular to
 /// that. Errors say what is wrong (no section, nothing enclosing `inside`).
-pub fn section_breadth_thickness(
+pub(crate) fn section_breadth_thickness(
     skin: &TriMesh,
     plane: &Plane,
     inside: &Point,
@@ -216,7 +216,7 @@ pub fn section_breadth_thickness(
 
 /// Breadth and thickness of the finger at `joint` (a PIP, DIP or the thumb's IP): see the
 /// module documentation.
-pub fn finger_joint_section(
+pub(crate) fn finger_joint_section(
     skin: &TriMesh,
     skeleton: &Skeleton,
     joint: Joint,
@@ -338,7 +338,7 @@ fn landmark(landmarks: &BTreeMap<String, Point>, name: &str) -> std::result::Res
 }
 
 /// Wrist breadth and thickness: see the module documentation.
-pub fn wrist_section(
+pub(crate) fn wrist_section(
     skin: &TriMesh,
     skeleton: &Skeleton,
     landmarks: &BTreeMap<String, Point>,

@@ -18,11 +18,11 @@ use crate::mocap::trajectories::Trajectories;
 /// a hand spans 100-250 mm and its markers lie some 20-120 mm from their centre; the bounds
 /// leave a factor of two on each side and exclude every wrong unit among m, cm, mm and in
 /// (each at least 10 times off).
-pub const HAND_MARKER_RADIUS_MM: (f64, f64) = (10.0, 250.0);
+pub(crate) const HAND_MARKER_RADIUS_MM: (f64, f64) = (10.0, 250.0);
 
 /// A marker whose median position lies further than this from the trial's marker centre is not
 /// on the hand or forearm (mislabelled, or a coordinate off), mm.
-pub const FAR_MARKER_MM: f64 = 600.0;
+pub(crate) const FAR_MARKER_MM: f64 = 600.0;
 
 /// Least distance beyond a marker's median distance from its median position at which a sample
 /// counts as an outlier, mm: larger than any motion of the calibration protocol moves a marker
@@ -30,7 +30,7 @@ pub const FAR_MARKER_MM: f64 = 600.0;
 pub const OUTLIER_FLOOR_MM: f64 = 300.0;
 
 /// Outlier threshold in robust standard deviations (1.4826 x MAD) beyond the median distance.
-pub const OUTLIER_MADS: f64 = 10.0;
+pub(crate) const OUTLIER_MADS: f64 = 10.0;
 
 /// Coordinate-wise median of `points` (`None` when empty).
 fn median_point(points: &[Point]) -> Option<Point> {
@@ -60,7 +60,7 @@ fn median(v: &mut [f64]) -> f64 {
 }
 
 /// The median position of every marker with a sample, as (label, position).
-pub fn marker_medians(traj: &Trajectories) -> Vec<(&str, Point)> {
+pub(crate) fn marker_medians(traj: &Trajectories) -> Vec<(&str, Point)> {
     traj.labels
         .iter()
         .zip(&traj.positions)

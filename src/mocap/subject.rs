@@ -24,7 +24,7 @@ pub const SUBJECT_FILE: &str = "subject.toml";
 
 /// Largest accepted `marker_offset_mm` (skin surface to marker centre), mm: a marker further
 /// from the skin than this is not on a hand-sized plate.
-pub const MAX_MARKER_OFFSET_MM: f64 = 30.0;
+pub(crate) const MAX_MARKER_OFFSET_MM: f64 = 30.0;
 
 /// One of the seven trials of spec section 1, by its `[trials]` key.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
@@ -67,7 +67,7 @@ impl TrialKind {
     }
 
     /// Parse a `[trials]` key.
-    pub fn from_key(s: &str) -> Option<TrialKind> {
+    pub(crate) fn from_key(s: &str) -> Option<TrialKind> {
         TrialKind::ALL.into_iter().find(|k| k.key() == s)
     }
 }
@@ -97,6 +97,9 @@ pub struct Subject {
     pub dimensions: BTreeMap<Dimension, f64>,
     /// `[labels]`: lab marker label -> spec name.
     pub labels: BTreeMap<String, String>,
+    /// `[motions]` (optional): motion trial name -> path as written (relative to `dir` unless
+    /// absolute), e.g. `grasp_bottle = "trials/grasp_bottle.c3d"`.
+    pub motions: BTreeMap<String, PathBuf>,
 }
 
 /// The file as serde sees it; values are spanned so that validation errors can give the line.
@@ -114,11 +117,8 @@ struct RawSubject {
     dimensions: BTreeMap<Spanned<String>, Spanned<f64>>,
     #[serde(default)]
     labels: BTreeMap<Spanned<String>, Spanned<String>>,
-    /// `[motions]` (spec section 5): checked to be names and paths here, read by
-    /// [`crate::mocap::motions`], so that a subject with motion trials loads everywhere.
     #[serde(default)]
-    #[allow(dead_code)]
-    motions: BTreeMap<String, String>,
+    motions: BTreeMap<Spanned<String>, Spanned<String>>,
 }
 
 impl Subject {
@@ -137,7 +137,7 @@ impl Subject {
 
     /// Parse and validate the text of a `subject.toml` for the folder `dir`; errors name
     /// `dir/subject.toml`, the key and its line.
-    pub fn from_toml_str(text: &str, dir: &Path) -> Result<Subject> {
+    pub(crate) fn from_toml_str(text: &str, dir: &Path) -> Result<Subject> {
         let file = dir.join(SUBJECT_FILE);
         let raw: RawSubject = toml::from_str(text).map_err(|e| toml_error(&file, text, &e))?;
         let at = |span: std::ops::Range<usize>| line_of(text, span.start);
@@ -251,6 +251,24 @@ impl Subject {
             labels.insert(key.to_string(), target.to_string());
         }
 
+        let mut motions = BTreeMap::new();
+        for (k, v) in &raw.motions {
+            let key = k.get_ref();
+            if key.trim().is_empty() || key.trim() != key {
+                return Err(fail(format!(
+                    "[motions] key '{key}' at line {} is empty or has leading/trailing blanks",
+                    at(k.span())
+                )));
+            }
+            if v.get_ref().trim().is_empty() {
+                return Err(fail(format!(
+                    "[motions] key '{key}' at line {} has an empty path",
+                    at(v.span())
+                )));
+            }
+            motions.insert(key.clone(), PathBuf::from(v.get_ref()));
+        }
+
         Ok(Subject {
             dir: dir.to_path_buf(),
             name,
@@ -260,6 +278,7 @@ impl Subject {
             trials,
             dimensions,
             labels,
+            motions,
         })
     }
 
@@ -270,7 +289,7 @@ impl Subject {
 
     /// The text of `subject.toml` in the spec's layout; [`Subject::from_toml_str`] of it gives
     /// back an equal `Subject`. Deterministic: tables in the spec's key order.
-    pub fn to_toml_string(&self) -> String {
+    pub(crate) fn to_toml_string(&self) -> String {
         let mut s = String::new();
         s.push_str(&format!("name = {}\n", quote(&self.name)));
         s.push_str(&format!("hand = {}\n", quote(self.hand.as_str())));
@@ -297,6 +316,14 @@ impl Subject {
         for (k, v) in &self.labels {
             s.push_str(&format!("{} = {}\n", quote(k), quote(v)));
         }
+        // Written only when there are motions, so that a folder without them reads byte for
+        // byte as before.
+        if !self.motions.is_empty() {
+            s.push_str("\n[motions]\n");
+            for (k, v) in &self.motions {
+                s.push_str(&format!("{} = {}\n", quote(k), quote(&v.to_string_lossy())));
+            }
+        }
         s
     }
 
@@ -308,7 +335,7 @@ impl Subject {
 
     /// The path of a trial: `dir` joined with its `[trials]` entry. The error names the missing
     /// key.
-    pub fn trial_path(&self, kind: TrialKind) -> Result<PathBuf> {
+    pub(crate) fn trial_path(&self, kind: TrialKind) -> Result<PathBuf> {
         match self.trials.get(kind.key()) {
             Some(p) => Ok(self.dir.join(p)),
             None => Err(Error::input(
@@ -319,6 +346,37 @@ impl Subject {
                 ),
             )),
         }
+    }
+
+    /// The path of the motion trial `name`: `dir` joined with its `[motions]` entry. The error
+    /// names the missing key.
+    pub fn motion_path(&self, name: &str) -> Result<PathBuf> {
+        match self.motions.get(name) {
+            Some(p) => Ok(self.dir.join(p)),
+            None => Err(Error::input(
+                self.toml_path(),
+                format!("no [motions] key '{name}' (add e.g. {name} = \"trials/{name}.c3d\")"),
+            )),
+        }
+    }
+
+    /// Read the motion trial `name` with the subject's `[labels]` mapping.
+    pub fn load_motion(&self, name: &str) -> Result<Trajectories> {
+        let path = self.motion_path(name)?;
+        let bytes = std::fs::read(&path).map_err(|e| {
+            if e.kind() == std::io::ErrorKind::NotFound {
+                Error::input(
+                    &path,
+                    format!(
+                        "file not found (named by [motions] key '{name}' in {})",
+                        self.toml_path().display()
+                    ),
+                )
+            } else {
+                Error::io(&path, e)
+            }
+        })?;
+        read_c3d_bytes(&bytes, &self.labels, &path)
     }
 
     /// Read a trial with the subject's `[labels]` mapping. For a calibration trial (not the
@@ -482,6 +540,31 @@ mod tests {
     use crate::geometry::Point;
     use crate::mocap::c3d::write_c3d;
     use proptest::prelude::*;
+
+    #[test]
+    fn motions_are_optional_read_and_written_back() {
+        let dir = Path::new("/s");
+        let base = "name = \"S\"\nhand = \"right\"\nmarker_offset_mm = 4.0\n";
+        let plain = Subject::from_toml_str(base, dir).unwrap();
+        assert!(plain.motions.is_empty());
+        assert!(!plain.to_toml_string().contains("[motions]"));
+        let text = format!("{base}[motions]\ngrasp_bottle = \"trials/grasp_bottle.c3d\"\n");
+        let s = Subject::from_toml_str(&text, dir).unwrap();
+        assert_eq!(
+            s.motion_path("grasp_bottle").unwrap(),
+            PathBuf::from("/s/trials/grasp_bottle.c3d")
+        );
+        assert_eq!(Subject::from_toml_str(&s.to_toml_string(), dir).unwrap(), s);
+        let e = s.motion_path("pour").unwrap_err().to_string();
+        assert!(e.contains("subject.toml") && e.contains("pour"), "{e}");
+        let e = Subject::from_toml_str(&format!("{base}[motions]\ngrasp = \" \"\n"), dir)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("[motions]") && e.contains("grasp") && e.contains("line 5"),
+            "{e}"
+        );
+    }
 
     /// The example of spec section 1 (all 22 dimensions, one label).
     const EXAMPLE: &str = r#"name = "S01"

@@ -152,7 +152,7 @@ impl IndividualHand {
 }
 
 /// Fingertips from a skin with (template) weights: see [`IndividualHand::load`].
-pub fn tips_from_skin(sk: &Skeleton, skin: &TriMesh, weights: &LinkWeights) -> [Point; 5] {
+pub(crate) fn tips_from_skin(sk: &Skeleton, skin: &TriMesh, weights: &LinkWeights) -> [Point; 5] {
     let dom = dominant_links(weights);
     let mut tips = [Point::origin(); 5];
     for f in Finger::ALL {

@@ -25,7 +25,7 @@ use nalgebra::Isometry3;
 
 /// Weights below this (after the extension) are dropped and the rest renormalised, so a node
 /// keeps only the links that move it noticeably (and LBS stays a short sum).
-pub const MIN_WEIGHT: f64 = 1e-3;
+pub(crate) const MIN_WEIGHT: f64 = 1e-3;
 
 /// Per node of `prepared.tet`, (link index over [`Link::ALL`], weight) summing to 1: boundary
 /// nodes by the barycentric blend of `template`'s skin weights on their face, interior nodes by

@@ -24,7 +24,7 @@ fn dominant_of(corners: &[usize], weights: &LinkWeights) -> usize {
 }
 
 /// The link each face belongs to: the largest entry of the sum of its corners' weights.
-pub fn face_links(mesh: &TriMesh, weights: &LinkWeights) -> Vec<usize> {
+pub(crate) fn face_links(mesh: &TriMesh, weights: &LinkWeights) -> Vec<usize> {
     mesh.faces.iter().map(|f| dominant_of(f, weights)).collect()
 }
 

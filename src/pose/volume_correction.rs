@@ -77,7 +77,7 @@ pub struct VolumeCorrection {
 /// Per point, the bulge basis of the module's field: the mixedness `1 − max w` and, per finger
 /// link it is weighted to, `w_l r_l(p)` (the weighted vector from the link's posed bone segment,
 /// from its joint centre to the distal end, to the posed point `p`).
-pub struct BulgeBasis {
+pub(crate) struct BulgeBasis {
     mixed: Vec<f64>,
     terms: Vec<Vec<(usize, Vec3)>>,
 }
@@ -143,7 +143,7 @@ impl BulgeBasis {
 /// the [`BulgeBasis`] at them, `tets` and `labels` the mesh's tetrahedra and their segments
 /// ([`super::quality::tet_segments`]), `rest` the segments' rest volumes
 /// ([`segment_volumes`] of the rest nodes).
-pub fn preserve_segment_volumes(
+pub(crate) fn preserve_segment_volumes(
     posed: &[Point],
     basis: &BulgeBasis,
     tets: &[[usize; 4]],

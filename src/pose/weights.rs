@@ -121,7 +121,7 @@ pub fn bone_segments(sk: &Skeleton, skin: &TriMesh) -> Vec<BoneSegment> {
 /// triangle of the positive semi-definite stiffness matrix `L` (`L_ij = −½(cot α + cot β)`,
 /// `L_ii = −Σ_j L_ij`), and the barycentric lumped mass (a third of the adjacent face areas)
 /// per vertex. Cotangents of near-degenerate triangles are clamped to ±1e4.
-pub fn cotangent_laplacian(mesh: &TriMesh) -> (Vec<Triplet<usize, usize, f64>>, Vec<f64>) {
+pub(crate) fn cotangent_laplacian(mesh: &TriMesh) -> (Vec<Triplet<usize, usize, f64>>, Vec<f64>) {
     let mut trip = Vec::with_capacity(mesh.n_faces() * 9);
     let mut mass = vec![0.0; mesh.n_vertices()];
     for f in &mesh.faces {

@@ -158,7 +158,7 @@ mod tests {
     /// A schematic hand of straight digits, so that expected motions can be worked out by hand.
     /// Lab axes as in the generic-hand template: fingers along -Y, dorsal +X, and on the right
     /// hand the thumb toward -Z (mirrored in Z for the left).
-    pub fn schematic(side: Side) -> Skeleton {
+    pub(crate) fn schematic(side: Side) -> Skeleton {
         let m = if side == Side::Right { 1.0 } else { -1.0 };
         let distal = Vec3::new(0.0, -1.0, 0.0);
         let dorsal = Vec3::new(1.0, 0.0, 0.0);

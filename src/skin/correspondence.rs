@@ -54,7 +54,7 @@ use nalgebra::{DMatrix, DVector, Matrix3};
 
 /// Most caliper constraints accepted: the capacitance matrix is `m × m` and building it costs
 /// `m` sparse solves (the paper uses 22).
-pub const MAX_DISTANCES: usize = 1024;
+pub(crate) const MAX_DISTANCES: usize = 1024;
 
 /// A template vertex whose skin point, pushed out by the marker radius along the deformed
 /// mesh's normal, must land on a subject's marker: `v_k + s·n_k = q_k`.

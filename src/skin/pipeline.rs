@@ -46,7 +46,7 @@ use std::str::FromStr;
 use std::sync::Arc;
 
 /// Faces of the simplified template the fit runs on (the seed paper: 992).
-pub const LOW_FACES: usize = 1000;
+pub(crate) const LOW_FACES: usize = 1000;
 
 /// Default weight of the joint-centre terms, relative to the mean diagonal
 /// of the correspondence energy's matrix: **off**. Measured on the validation suite (README,
@@ -60,17 +60,17 @@ pub const CENTRE_WEIGHT: f64 = 0.0;
 pub const CALIPER_ROUNDS: usize = 6;
 
 /// Default tolerance of the caliper rounds, mm (a caliper's resolution is 0.1 mm).
-pub const CALIPER_TOLERANCE_MM: f64 = 0.05;
+pub(crate) const CALIPER_TOLERANCE_MM: f64 = 0.05;
 
 /// Default share of the caliper's miss corrected per round ([`SkinOptions::caliper_gain`]).
-pub const CALIPER_GAIN: f64 = 0.7;
+pub(crate) const CALIPER_GAIN: f64 = 0.7;
 
 /// Default finger slack of the caliper rounds, mm ([`SkinOptions::finger_caliper_slack_mm`]).
 pub const FINGER_CALIPER_SLACK_MM: f64 = 1.0;
 
 /// Convergence tolerance of the fit at [`FitResolution::Full`], mm (5 µm, a fortieth of the
 /// markers' noise).
-pub const FULL_TOLERANCE_MM: f64 = 5e-3;
+pub(crate) const FULL_TOLERANCE_MM: f64 = 5e-3;
 
 /// Which mesh the landmark fit runs on.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
@@ -187,9 +187,9 @@ pub struct SkinFit {
 }
 
 /// Landmarks further than this from their markers after the fit are reported, mm.
-pub const LANDMARK_WARN_MM: f64 = 0.5;
+pub(crate) const LANDMARK_WARN_MM: f64 = 0.5;
 /// Dimensions missed by more than this after the fit are reported, mm.
-pub const DIMENSION_WARN_MM: f64 = 0.5;
+pub(crate) const DIMENSION_WARN_MM: f64 = 0.5;
 
 /// Fit the template to a subject's static reference trial, caliper dimensions and (optionally)
 /// estimated link model; see the module documentation for the steps.

@@ -40,7 +40,7 @@ use std::collections::BTreeMap;
 /// `λ`, the pull of every angle toward the template's posture (per radian, against unit-vector
 /// residuals): weak enough that a 20° posture is recovered to about 0.1°, strong enough to pin
 /// a degree of freedom no residual sees.
-pub const POSTURE_PRIOR: f64 = 0.01;
+pub(crate) const POSTURE_PRIOR: f64 = 0.01;
 
 /// Every fitted angle is shrunk toward the template's posture by this much (soft threshold,
 /// `θ ← sign θ · max(0, |θ| − δ)`), degrees: the estimate's noise floor. The link model's centres
@@ -49,7 +49,7 @@ pub const POSTURE_PRIOR: f64 = 0.01;
 /// from a posture a few degrees wrong ends further off than one started from the right posture
 /// (README, "Skin": 0.77 against 0.49 mm mean on `typical-r1`), while real postures of 5-20°
 /// keep all but 2° of their rotation, which the landmark fit absorbs.
-pub const POSTURE_DEADBAND_DEG: f64 = 2.0;
+pub(crate) const POSTURE_DEADBAND_DEG: f64 = 2.0;
 
 /// Most Levenberg-Marquardt iterations.
 const MAX_ITERATIONS: usize = 100;
@@ -57,7 +57,7 @@ const MAX_ITERATIONS: usize = 100;
 /// Weight of the link directions taken from the estimated joint centres, relative to those
 /// taken from the dorsal markers (1) and the 1-DOF axes (1). The centres are a millimetre or
 /// two off (a few degrees over a phalanx); the markers a fifth of that.
-pub const CENTRE_DIRECTION_WEIGHT: f64 = 0.3;
+pub(crate) const CENTRE_DIRECTION_WEIGHT: f64 = 0.3;
 
 /// A landmark marker of the template, as it moves when the template is posed.
 #[derive(Clone, Debug)]

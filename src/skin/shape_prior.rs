@@ -40,7 +40,7 @@ use std::collections::BTreeMap;
 use std::sync::Arc;
 
 /// Rays look this far along and against a vertex normal for the reference surface, mm.
-pub const OFFSET_REACH_MM: f64 = 12.0;
+pub(crate) const OFFSET_REACH_MM: f64 = 12.0;
 
 /// A hit counts when its face's normal is within this angle's cosine of the vertex normal
 /// (the surface the vertex stands for, not a neighbouring digit's back).
@@ -321,9 +321,9 @@ fn rms(a: &DVector<f64>, b: Option<&DVector<f64>>, measured: &[bool]) -> f64 {
 }
 
 /// Modes tried by the cross-validation.
-pub const MODE_CHOICES: [usize; 6] = [0, 1, 2, 4, 6, 8];
+pub(crate) const MODE_CHOICES: [usize; 6] = [0, 1, 2, 4, 6, 8];
 /// Ridge parameters tried by the cross-validation (on standardised features).
-pub const RIDGE_CHOICES: [f64; 5] = [0.3, 1.0, 3.0, 10.0, 30.0];
+pub(crate) const RIDGE_CHOICES: [f64; 5] = [0.3, 1.0, 3.0, 10.0, 30.0];
 
 /// Train a prior on `samples` (at least 3, all of the same template): the number of modes from
 /// [`MODE_CHOICES`] and the ridge from [`RIDGE_CHOICES`] that give the least mean leave-one-out

@@ -19,14 +19,14 @@ use std::collections::BinaryHeap;
 /// over the many collapses a face sees: with 90° one face of the template at 1,000 faces ended
 /// up at 132° from the surface it stands for. 30° keeps the worst at about 42° and costs
 /// nothing in error (the same 1.27 mm).
-pub const MAX_NORMAL_ROTATION_DEG: f64 = 30.0;
+pub(crate) const MAX_NORMAL_ROTATION_DEG: f64 = 30.0;
 
 /// Smallest shape quality `q = 4√3·area / (l₀² + l₁² + l₂²)` (1 for an equilateral triangle, 0
 /// for a degenerate one; 0.1 is a sliver with its shortest height about 1/17 of its longest edge)
 /// a collapse may leave on a face it changes, unless that face was already worse before.
 /// Needles are harmless to the error metric but make the later per-face deformation gradients
 /// (Sumner & Popović 2004) ill-conditioned.
-pub const MIN_FACE_QUALITY: f64 = 0.1;
+pub(crate) const MIN_FACE_QUALITY: f64 = 0.1;
 
 /// A simplified mesh and how its vertices map to the input's.
 #[derive(Clone, Debug, PartialEq)]

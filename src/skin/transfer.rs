@@ -47,7 +47,7 @@ use nalgebra::Matrix3;
 use rayon::prelude::*;
 
 /// Default blend radius as a fraction of the low mesh's mean edge length.
-pub const DEFAULT_BLEND_FRACTION: f64 = 0.5;
+pub(crate) const DEFAULT_BLEND_FRACTION: f64 = 0.5;
 
 /// A face is degenerate when `|e1 × e2|` is below this times its longest squared edge
 /// (aspect ratio about 1e-10), where its frame's inverse would amplify rounding beyond use.
@@ -113,7 +113,7 @@ impl Binding {
 /// The affine frame of triangle `abc` (Sumner & Popović 2004, section 3): columns `b - a`,
 /// `c - a` and `n = (e1 × e2) / sqrt(|e1 × e2|)`; the normal axis is zero for a zero-area
 /// triangle. With origin `a` it is `ᵂT_f` of equation 3 in its affine form.
-pub fn affine_frame(a: &Point, b: &Point, c: &Point) -> Matrix3<f64> {
+pub(crate) fn affine_frame(a: &Point, b: &Point, c: &Point) -> Matrix3<f64> {
     let (e1, e2) = (b - a, c - a);
     let x = e1.cross(&e2);
     let len = x.norm();
@@ -171,7 +171,7 @@ pub fn bind(low: &TriMesh, high_points: &[Point]) -> Result<Binding> {
 /// default. Errors (one line, naming the item) when the low mesh has no usable face, a point or
 /// low vertex is not finite, a face index is out of range, or the radius is negative or not
 /// finite. Runs on rayon; the result does not depend on the thread count.
-pub fn bind_with_radius(
+pub(crate) fn bind_with_radius(
     low: &TriMesh,
     high_points: &[Point],
     radius: Option<f64>,

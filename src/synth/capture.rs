@@ -353,7 +353,7 @@ pub fn forearm_markers(
 
 /// A smooth drift of the whole hand during a trial, zero at t = 0: sums of two slow sinusoids
 /// per axis (0.03-0.2 Hz) for translation and rotation.
-pub struct Drift {
+pub(crate) struct Drift {
     terms: Vec<(Vec3, Vec3, f64, f64)>,
 }
 
@@ -389,7 +389,7 @@ impl Drift {
 
 /// Occlusion gaps of one marker: a mask with `true` = visible. Gaps last 0.05-0.5 s and start
 /// after the seated second, until `fraction` of the frames is hidden.
-pub fn gap_mask(rng: &mut Rng, n: usize, rate: f64, fraction: f64) -> Vec<bool> {
+pub(crate) fn gap_mask(rng: &mut Rng, n: usize, rate: f64, fraction: f64) -> Vec<bool> {
     let mut visible = vec![true; n];
     let start = ((SEATED_S * rate) as usize + 1).min(n);
     if fraction <= 0.0 || n <= start + 1 {

@@ -10,6 +10,7 @@
 
 pub mod anthropometry;
 pub mod capture;
+pub mod grasp_motion;
 pub mod motion;
 pub mod procedural;
 pub mod stamp;
@@ -126,7 +127,7 @@ impl Preset {
     }
 
     /// SD of the caliper measurement error, mm.
-    pub fn caliper_sd_mm(self) -> f64 {
+    pub(crate) fn caliper_sd_mm(self) -> f64 {
         match self {
             Preset::Typical | Preset::SmallRom => 0.4,
             Preset::Noisy => 0.8,
@@ -245,6 +246,10 @@ pub struct SynthOptions {
     /// `trial_repeat` 1-5. Not written to `truth.json` when 0, so older truths stay identical.
     #[serde(default, skip_serializing_if = "is_zero")]
     pub trial_repeat: u32,
+    /// Length of each grasp motion trial ([`grasp_motion`]), s; `None` writes none. Not written
+    /// to `truth.json` when `None`, so that subjects without motions stay byte-identical.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub motion_s: Option<f64>,
 }
 
 fn is_zero(v: &u32) -> bool {
@@ -281,6 +286,7 @@ impl SynthOptions {
             marker_offset_mm: default_offset(),
             repeat: 0,
             trial_repeat: 0,
+            motion_s: None,
         }
     }
 }
@@ -288,7 +294,7 @@ impl SynthOptions {
 /// Capture frame rate, Hz (the seed paper's).
 pub const FRAME_RATE: f64 = 100.0;
 /// Frames of the static reference trial (averaged by the reader).
-pub const REFERENCE_FRAMES: usize = 10;
+pub(crate) const REFERENCE_FRAMES: usize = 10;
 
 /// Ground truth of a simulated subject (`truth.json`, spec section 3).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -331,6 +337,8 @@ pub struct SyntheticSubject {
     pub recordings: BTreeMap<String, Recording>,
     /// The CT-like reference surface, lab frame.
     pub reference: TriMesh,
+    /// Grasp motion trials with their truth, by motion name (`[motions]` key).
+    pub motions: BTreeMap<String, grasp_motion::GraspTrial>,
 }
 
 /// The rotation from the template's frame to a lab's with the hand palm-down on a seat: the
@@ -386,6 +394,14 @@ pub fn simulate_with(opts: &SynthOptions, err: &ErrorModel) -> Result<SyntheticS
         if !(2.0..=600.0).contains(&d) {
             return Err(Error::invalid(format!(
                 "trial duration {d} s is outside 2-600 s"
+            )));
+        }
+    }
+    if let Some(d) = opts.motion_s {
+        let (lo, hi) = grasp_motion::MOTION_S_RANGE;
+        if !(d.is_finite() && (lo..=hi).contains(&d)) {
+            return Err(Error::invalid(format!(
+                "motion trial length {d} s is outside {lo}-{hi} s"
             )));
         }
     }
@@ -624,7 +640,51 @@ pub fn simulate_with(opts: &SynthOptions, err: &ErrorModel) -> Result<SyntheticS
     };
     trials.insert("reference".into(), reference);
 
-    // 6. The CT-like reference surface.
+    // 6. Grasp motion trials: the landmarks' markers as placed for the static trial (now riding
+    // their links and sliding with flexion), the palm and forearm markers of the calibration
+    // trials, and the part's markers. Every draw comes from streams of their own, so the
+    // calibration trials are the same with or without motions.
+    let mut motions = BTreeMap::new();
+    if let Some(motion_s) = opts.motion_s {
+        let mut sta_rng = session("grasp-skin-sta");
+        let mut defs: Vec<MarkerDef> = palm_defs.clone();
+        for name in landmark_names() {
+            if palm_markers().contains(&name) {
+                continue;
+            }
+            let normal = hand.landmarks[name].1;
+            if let Some(d) = grasp_motion::landmark_marker(
+                name,
+                placed[name],
+                &normal,
+                err.skin_sta_mm,
+                &mut sta_rng,
+            ) {
+                defs.push(d);
+            }
+        }
+        defs.extend(arm_defs.iter().cloned());
+        let gerr = grasp_motion::GraspErrors::from_model(&err);
+        for task in &grasp_motion::GRASP_TASKS {
+            let trial = grasp_motion::simulate_grasp(
+                task,
+                grasp_motion::GraspInputs {
+                    skeleton: &true_skeleton,
+                    skin: &true_skin,
+                    dimensions: &truth.dimensions,
+                    markers: defs.clone(),
+                },
+                motion_s,
+                FRAME_RATE,
+                &err,
+                &gerr,
+                &session(&format!("motion-{}", task.name)),
+            )?;
+            motions.insert(task.name.to_string(), trial);
+        }
+    }
+
+    // 7. The CT-like reference surface.
     let reference = voxel_scan::ct_surface(&true_skin, opts.voxel_mm)?;
 
     let name = format!("SYN{:04}", opts.seed % 10_000);
@@ -640,6 +700,10 @@ pub fn simulate_with(opts: &SynthOptions, err: &ErrorModel) -> Result<SyntheticS
             .collect(),
         dimensions: measured,
         labels: BTreeMap::new(),
+        motions: motions
+            .keys()
+            .map(|k| (k.clone(), PathBuf::from(format!("trials/{k}.c3d"))))
+            .collect(),
     };
     Ok(SyntheticSubject {
         subject,
@@ -651,6 +715,7 @@ pub fn simulate_with(opts: &SynthOptions, err: &ErrorModel) -> Result<SyntheticS
         markers,
         recordings,
         reference,
+        motions,
     })
 }
 
@@ -735,7 +800,21 @@ fn write_into(tmp: &Path, s: &SyntheticSubject) -> Result<()> {
         )?;
     }
     let json = serde_json::to_string_pretty(&s.truth).expect("truth serialises");
-    crate::io::atomic::write_bytes_atomic(&tmp.join("truth.json"), json.as_bytes())
+    crate::io::atomic::write_bytes_atomic(&tmp.join("truth.json"), json.as_bytes())?;
+    if !s.motions.is_empty() {
+        let truth_dir = tmp.join("truth_motion");
+        std::fs::create_dir_all(&truth_dir).map_err(|e| Error::io(&truth_dir, e))?;
+        for (name, m) in &s.motions {
+            write_c3d(&trials_dir.join(format!("{name}.c3d")), &m.trajectories)?;
+            // Compact: one line of numbers per frame would triple the file for no reader's gain.
+            let json = serde_json::to_string(&m.truth).expect("motion truth serialises");
+            crate::io::atomic::write_bytes_atomic(
+                &truth_dir.join(format!("{name}.json")),
+                json.as_bytes(),
+            )?;
+        }
+    }
+    Ok(())
 }
 
 #[cfg(test)]

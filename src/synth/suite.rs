@@ -34,6 +34,10 @@ struct SuiteEntry {
     /// Capture session of the same hand (repeatability studies; default 0).
     #[serde(default)]
     repeat: Option<u32>,
+    /// Length of a grasp motion trial, s (default: none, so that the suite's folders stay as
+    /// they are unless an entry asks for one).
+    #[serde(default)]
+    motion_s: Option<f64>,
     /// Kept out of every choice of method or default: only scored (default false).
     #[serde(default)]
     held_out: bool,
@@ -66,7 +70,7 @@ pub fn read_suite_subjects(path: &Path) -> Result<Vec<SuiteSubject>> {
 }
 
 /// Parse a suite file's text (errors name `path`, the key and the line).
-pub fn parse_suite(text: &str, path: &Path) -> Result<Vec<SuiteSubject>> {
+pub(crate) fn parse_suite(text: &str, path: &Path) -> Result<Vec<SuiteSubject>> {
     let file: SuiteFile = toml::from_str(text).map_err(|e| Error::toml(path, text, &e))?;
     let mut out: Vec<SuiteSubject> = Vec::new();
     for e in file.subject {
@@ -84,6 +88,7 @@ pub fn parse_suite(text: &str, path: &Path) -> Result<Vec<SuiteSubject>> {
         o.voxel_mm = e.voxel_mm.unwrap_or(o.voxel_mm);
         o.marker_offset_mm = e.marker_offset_mm.unwrap_or(o.marker_offset_mm);
         o.repeat = e.repeat.unwrap_or(o.repeat);
+        o.motion_s = e.motion_s;
         out.push(SuiteSubject {
             name: e.name,
             opts: o,

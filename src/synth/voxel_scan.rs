@@ -21,7 +21,7 @@ use rayon::prelude::*;
 
 /// Rays per voxel column along x and along y used by [`ct_surface`]. Even, so that a face lying
 /// exactly on a grid plane through voxel centres covers exactly half of each sub-ray set.
-pub const DEFAULT_SUB_RAYS: usize = 4;
+pub(crate) const DEFAULT_SUB_RAYS: usize = 4;
 
 /// Empty voxel layers added around the surface's bounding box on every side; two keep every
 /// voxel that can touch the surface away from the grid boundary, so the isosurface is closed.
@@ -29,7 +29,7 @@ pub const PADDING: i64 = 2;
 
 /// Largest grid [`occupancy`] will allocate (2^28 nodes, 512 MiB of occupancy values). A hand
 /// of 190 x 100 x 90 mm needs 1.5e7 nodes at 0.5 mm and 1.1e8 at 0.25 mm.
-pub const MAX_NODES: usize = 1 << 28;
+pub(crate) const MAX_NODES: usize = 1 << 28;
 
 /// Sub-ray retries with a different jitter when a ray's winding number does not return to zero
 /// (which, for a watertight mesh, only floating-point rounding at a vertex can cause).

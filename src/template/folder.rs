@@ -91,7 +91,7 @@ pub fn surface_file(dir: &Path, side: Side) -> PathBuf {
 
 /// The fingerprint of the files of `dir` that make its template of `side` (surface, settings,
 /// spec: those present).
-pub fn folder_fingerprint(dir: &Path, side: Side) -> Result<String> {
+pub(crate) fn folder_fingerprint(dir: &Path, side: Side) -> Result<String> {
     let files: Vec<PathBuf> = [
         surface_file(dir, side),
         dir.join(SETTINGS_FILE),

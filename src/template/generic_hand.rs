@@ -11,9 +11,9 @@ use crate::skeleton::Skeleton;
 use std::path::Path;
 
 /// The right-hand template GLB, embedded so the toolkit needs no files at run time.
-pub const RIGHT_GLB: &[u8] = include_bytes!("../../assets/generic-hand/right.glb");
+pub(crate) const RIGHT_GLB: &[u8] = include_bytes!("../../assets/generic-hand/right.glb");
 /// The left-hand template GLB.
-pub const LEFT_GLB: &[u8] = include_bytes!("../../assets/generic-hand/left.glb");
+pub(crate) const LEFT_GLB: &[u8] = include_bytes!("../../assets/generic-hand/left.glb");
 
 /// Sparse per-vertex skinning weights: `(link index, weight)` pairs summing to 1.
 pub type LinkWeights = Vec<Vec<(usize, f64)>>;
@@ -47,7 +47,7 @@ fn webxr_prefix(f: Finger) -> &'static str {
 }
 
 /// WebXR node name of spec joint `j`.
-pub fn webxr_joint_name(j: Joint) -> String {
+pub(crate) fn webxr_joint_name(j: Joint) -> String {
     match j.finger() {
         None => "wrist".into(),
         Some(Finger::Thumb) => {
@@ -94,7 +94,7 @@ pub const WRIST_BAND_MM: f64 = 8.0;
 
 /// Fraction of the wrist node's weight that goes to ARM for a point at signed distance `s`
 /// (mm) distal of the wrist centre along the palm's long axis.
-pub fn wrist_split(s: f64) -> f64 {
+pub(crate) fn wrist_split(s: f64) -> f64 {
     (0.5 - s / (2.0 * WRIST_BAND_MM)).clamp(0.0, 1.0)
 }
 

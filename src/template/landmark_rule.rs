@@ -24,7 +24,7 @@ use std::collections::BTreeMap;
 
 /// Half-thickness of the slab of a caliper extreme, mm: wide enough to hold vertices of the
 /// subdivided template (median edge about 1.6 mm), thin enough to stay at the joint.
-pub const SLAB_HALF_MM: f64 = 1.5;
+pub(crate) const SLAB_HALF_MM: f64 = 1.5;
 
 /// First intersection of the ray `origin + t·dir` (t > 0) with the mesh (Möller & Trumbore
 /// 1997); returns the face and the hit point.
@@ -58,7 +58,7 @@ pub fn ray_hit(mesh: &TriMesh, origin: &Point, dir: &Vec3) -> Option<(usize, Poi
 }
 
 /// The landmark vertex of a dorsal ray (see the module doc).
-pub fn ray_vertex(mesh: &TriMesh, origin: &Point, dir: &Vec3) -> Option<usize> {
+pub(crate) fn ray_vertex(mesh: &TriMesh, origin: &Point, dir: &Vec3) -> Option<usize> {
     let (f, hit) = ray_hit(mesh, origin, &dir.normalize())?;
     mesh.faces[f].into_iter().min_by(|&a, &b| {
         (mesh.vertices[a] - hit)
@@ -226,7 +226,7 @@ pub fn derive_hand_spec(
 }
 
 /// The joint a finger dimension is measured at: PIP (thumb: IP) for proximal, DIP for distal.
-pub fn dimension_joint(d: Dimension, f: Finger) -> Joint {
+pub(crate) fn dimension_joint(d: Dimension, f: Finger) -> Joint {
     match d {
         Dimension::BreadthDistal(_) | Dimension::ThicknessDistal(_) => f.joints()[2],
         _ if f == Finger::Thumb => Joint::TIp,

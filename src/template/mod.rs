@@ -22,7 +22,7 @@ use std::path::Path;
 
 /// Loop subdivision levels from the base asset to the high-resolution template
 /// (2314 -> 9256 -> 37,024 faces; the seed paper's template had 59,904).
-pub const SUBDIVISION_LEVELS: usize = 2;
+pub(crate) const SUBDIVISION_LEVELS: usize = 2;
 
 /// The high-resolution template of one hand with everything later stages need.
 #[derive(Clone, Debug)]

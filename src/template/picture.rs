@@ -31,7 +31,12 @@ pub fn bone_segments(hand: &TemplateHand) -> Vec<[Point; 2]> {
 }
 
 /// Render one view of the template with its annotations.
-pub fn annotated_view(hand: &TemplateHand, view: View, labels: bool, size: u32) -> Result<Image> {
+pub(crate) fn annotated_view(
+    hand: &TemplateHand,
+    view: View,
+    labels: bool,
+    size: u32,
+) -> Result<Image> {
     let mesh = &hand.mesh;
     let view = view.fit_mesh(mesh, 0.06);
     let (w, h) = (size, (size as f64 * 1.25) as u32);

@@ -49,7 +49,7 @@ pub struct TemplateSpec {
 }
 
 /// The spec file shipped with the toolkit.
-pub const SPEC_TOML: &str = include_str!("../../assets/generic-hand/template-spec.toml");
+pub(crate) const SPEC_TOML: &str = include_str!("../../assets/generic-hand/template-spec.toml");
 
 /// Header written above the generated TOML.
 const HEADER: &str =
@@ -59,7 +59,7 @@ const HEADER: &str =
 
 impl TemplateSpec {
     /// Parse a spec file's text; errors name `path` and the key.
-    pub fn from_toml(text: &str, path: &Path) -> Result<TemplateSpec> {
+    pub(crate) fn from_toml(text: &str, path: &Path) -> Result<TemplateSpec> {
         let spec: TemplateSpec = toml::from_str(text).map_err(|e| Error::toml(path, text, &e))?;
         Ok(spec)
     }

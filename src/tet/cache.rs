@@ -74,7 +74,7 @@ pub fn default_cache_dir() -> Option<PathBuf> {
 }
 
 /// The cache file of `key` in `dir`.
-pub fn cache_path(dir: &Path, key: u64) -> PathBuf {
+pub(crate) fn cache_path(dir: &Path, key: u64) -> PathBuf {
     dir.join(format!("tet-{key:016x}.bin"))
 }
 

@@ -335,7 +335,7 @@ impl ElasticSolver {
 /// iteration commutes with rotations, so its step count depends on the stretch alone.)
 /// Inverted or nearly flat elements, and any that do not converge, fall back to
 /// [`nearest_rotation_svd`].
-pub fn nearest_rotation(f: &Matrix3<f64>) -> Matrix3<f64> {
+pub(crate) fn nearest_rotation(f: &Matrix3<f64>) -> Matrix3<f64> {
     let scale = f.norm_squared();
     let det = f.determinant();
     // Relative to |f|³, so the test does not depend on the units.
@@ -381,7 +381,7 @@ fn cofactor(m: &Matrix3<f64>) -> Matrix3<f64> {
 /// The rotation nearest to `f` by its SVD: `U Vᵀ`, with the last singular vector flipped when
 /// that would be a reflection (the inverted-element case of Irving et al. 2004, "Invertible
 /// finite elements for robust simulation of large deformation").
-pub fn nearest_rotation_svd(f: &Matrix3<f64>) -> Matrix3<f64> {
+pub(crate) fn nearest_rotation_svd(f: &Matrix3<f64>) -> Matrix3<f64> {
     let svd = f.svd(true, true);
     let (Some(mut u), Some(v_t)) = (svd.u, svd.v_t) else {
         return Matrix3::identity();

@@ -59,13 +59,13 @@ use std::collections::HashMap;
 pub const ALGORITHM_VERSION: u32 = 1;
 
 /// Warp threshold for long (axis-parallel, length `h`) lattice edges (L&S 2007, section 4).
-pub const ALPHA_LONG: f64 = 0.24999;
+pub(crate) const ALPHA_LONG: f64 = 0.24999;
 /// Warp threshold for short (red-black, length `h √3 / 2`) lattice edges (L&S 2007).
-pub const ALPHA_SHORT: f64 = 0.41189;
+pub(crate) const ALPHA_SHORT: f64 = 0.41189;
 /// Default lattice spacing for the template hand, mm: 157,145 tetrahedra and 31,519 nodes
 /// (9,361 on the boundary) on the right template, with several lattice cells across a finger
 /// so that fingers hold interior nodes; the tet volume is 0.36 % below the surface's.
-pub const DEFAULT_SPACING_MM: f64 = 3.0;
+pub(crate) const DEFAULT_SPACING_MM: f64 = 3.0;
 
 /// Most lattice vertices accepted (a guard against a spacing far too small for the surface).
 const MAX_LATTICE_VERTICES: usize = 40_000_000;

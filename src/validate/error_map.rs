@@ -25,7 +25,7 @@ use std::path::Path;
 /// the vertex list). The CT-like reference has about 850,000 vertices spread evenly over the
 /// surface (an isosurface on a 0.5 mm grid), so a stride keeps the sample uniform over the
 /// surface while bounding the time; the count measured is reported.
-pub const MAX_REVERSE_POINTS: usize = 250_000;
+pub(crate) const MAX_REVERSE_POINTS: usize = 250_000;
 
 /// Distances in both directions.
 #[derive(Clone, Debug, PartialEq, Serialize)]
@@ -58,7 +58,7 @@ pub fn error_map(skin: &TriMesh, reference: &TriMesh) -> ErrorMap {
 }
 
 /// [`error_map`] measuring at most `max_reverse` reference vertices (at least 1).
-pub fn error_map_with(skin: &TriMesh, reference: &TriMesh, max_reverse: usize) -> ErrorMap {
+pub(crate) fn error_map_with(skin: &TriMesh, reference: &TriMesh, max_reverse: usize) -> ErrorMap {
     let (forward, (reverse, stride)) = rayon::join(
         || distances_to_surface(&skin.vertices, &AabbTree::new(reference)),
         || {
@@ -128,7 +128,7 @@ pub fn hand_directions(
 
 /// The four standard views of a hand (name, camera), distal up: looking at the back of the
 /// hand, at the palm, at the thumb side and at the little-finger side.
-pub fn hand_views(dorsal: Vec3, distal: Vec3, radial: Vec3) -> [(&'static str, View); 4] {
+pub(crate) fn hand_views(dorsal: Vec3, distal: Vec3, radial: Vec3) -> [(&'static str, View); 4] {
     [
         ("dorsal", View::along(-dorsal, distal)),
         ("palmar", View::along(dorsal, distal)),
@@ -253,7 +253,7 @@ pub fn render_error_views(
 
 /// sRGB bytes to the linear RGBA that glTF's `COLOR_0` holds (glTF 2.0, 3.7.2.1: vertex colours
 /// are linear), with the sRGB transfer function (IEC 61966-2-1).
-pub fn srgb_to_linear(c: [u8; 3]) -> [f32; 4] {
+pub(crate) fn srgb_to_linear(c: [u8; 3]) -> [f32; 4] {
     let f = |x: u8| {
         let s = x as f64 / 255.0;
         let l = if s <= 0.04045 {

@@ -110,7 +110,7 @@ pub fn joint_fits(
 
 /// [`joint_fits`] from trials in memory keyed as in `[trials]` (`reference`, `wrist`, ...),
 /// `rf` the reference frame of the calibration trials.
-pub fn joint_fits_from(
+pub(crate) fn joint_fits_from(
     rf: usize,
     trials: &BTreeMap<String, Trajectories>,
     joints: &BTreeMap<String, JointRecord>,

@@ -12,6 +12,7 @@ pub mod joint_error_plots;
 pub mod joint_fit;
 pub mod joint_fit_plots;
 pub mod link_accuracy;
+mod model_inputs;
 pub mod report;
 pub mod report_html;
 pub mod report_md;

@@ -9,61 +9,26 @@
 //! caliper dimensions of `subject.toml`, the joint fits of the seed paper's Figures 8-9, the
 //! model's link lengths, runtimes, warnings) is reported as for a simulated subject.
 
-use super::dimension_accuracy::dimension_accuracy;
+use super::dimension_accuracy::{dimension_accuracy, DimensionAccuracy};
 use super::error_map::{
-    colour_scale_top, error_map, hand_directions, render_error_views, write_error_map_glb,
+    colour_scale_top, error_map, hand_directions, render_error_views, write_error_map_glb, ErrorMap,
 };
-use super::joint_fit::joint_fits;
+use super::joint_fit::{joint_fits, JointFit};
 use super::joint_fit_plots::{joint_fit_figures, radius_figure};
-use super::link_accuracy::{compare, link_lengths, read_joints, read_truth};
-use super::subject_validation::{JointFitSummary, References, ReportFigures, SubjectValidation};
+use super::link_accuracy::{link_lengths, LinkAccuracy};
+use super::model_inputs::ModelInputs;
+pub use super::model_inputs::{check_reference_scale, REFERENCE_SCALE_RATIO};
+use super::subject_validation::{JointFitSummary, ReportFigures, SubjectValidation};
 use super::surface_regions::{model_regions, surface_regions, SurfaceRegions};
 use crate::anatomy::landmark_names;
 use crate::error::{Error, Result};
-use crate::geometry::TriMesh;
 use crate::io::atomic::write_bytes_atomic;
-use crate::io::{obj, ply, Units};
 use crate::measure::landmarks_on_skin;
-use crate::mocap::subject::Subject;
 use crate::mocap::subject::TrialKind;
 use crate::skeleton::record::skeleton_from_records;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
-
-fn read_json(path: &Path) -> Result<serde_json::Value> {
-    let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
-    serde_json::from_str(&text).map_err(|e| Error::input(path, format!("not JSON: {e}")))
-}
-
-/// Largest ratio between the bounding-box diagonals of `reference.ply` and `skin.obj` that a
-/// reference of the same hand can have (a scan cut at another place of the forearm differs by
-/// tens of percent, a wrong unit by 10 to 1000 times).
-pub const REFERENCE_SCALE_RATIO: f64 = 3.0;
-
-/// Check that the reference surface (read as mm) is the size of the reconstructed skin: the
-/// ratio of their bounding-box diagonals within 1/[`REFERENCE_SCALE_RATIO`] to
-/// [`REFERENCE_SCALE_RATIO`], else an error naming `path` and the unit its numbers look like
-/// (the one of m, cm, in, mm that brings the ratio nearest 1).
-pub fn check_reference_scale(reference: &TriMesh, skin: &TriMesh, path: &Path) -> Result<()> {
-    let (r, s) = (reference.diagonal(), skin.diagonal());
-    if !(r > 0.0 && s > 0.0) {
-        return Ok(());
-    }
-    let ratio = r / s;
-    if (1.0 / REFERENCE_SCALE_RATIO..=REFERENCE_SCALE_RATIO).contains(&ratio) {
-        return Ok(());
-    }
-    // The reference's numbers, read in a unit u, should measure the skin's diagonal.
-    let likely = Units::likely(r, s);
-    Err(Error::input(
-        path,
-        format!(
-            "the surface is {r:.3} mm across (read as mm) where skin.obj is {s:.1} mm; its \
-             numbers look like {likely}: convert it to mm"
-        ),
-    ))
-}
 
 /// Measure the reconstruction in `model` (a `reconstruct` folder) against the subject in
 /// `subject_dir` (with `truth.json` and `reference.ply` when it has them: each is optional,
@@ -79,105 +44,12 @@ pub fn validate_subject(
         timings.push((name.to_string(), t.elapsed().as_secs_f64()));
         *t = Instant::now();
     };
-    let truth_path = subject_dir.join("truth.json");
-    let reference_path = subject_dir.join("reference.ply");
-    let references = References {
-        reference_ply: reference_path.exists(),
-        truth_json: truth_path.exists(),
-    };
-    let subject = Subject::load(subject_dir)?;
-    let inputs = crate::io::output_paths::Inputs::files(
-        [
-            subject.toml_path(),
-            truth_path.clone(),
-            reference_path.clone(),
-        ]
-        .into_iter()
-        .chain(subject.trials.values().map(|p| subject.dir.join(p))),
-    )
-    .with_model(model);
-    crate::io::output_paths::check_output_dir(
-        report,
-        &["metrics.json", "report.html", "report.md", "error-map.png"],
-        "--report",
-        &inputs,
-    )?;
-    let model_path = model.join("link_model.json");
-    let joints = read_joints(&model_path)?;
-    let truth = if references.truth_json {
-        let truth = read_truth(&truth_path)?;
-        let link = compare(&joints, &truth.joints);
-        Some((truth, link))
-    } else {
-        None
-    };
-    let model_json = read_json(&model_path)?;
-    let warnings: Vec<String> = model_json["warnings"]
-        .as_array()
-        .map(|a| {
-            a.iter()
-                .filter_map(|w| w.as_str().map(String::from))
-                .collect()
-        })
-        .unwrap_or_default();
-    let recon = model.join("report.json");
-    let reconstruct_timings_s: BTreeMap<String, f64> = if recon.exists() {
-        read_json(&recon)?["timings_s"]
-            .as_object()
-            .map(|o| {
-                o.iter()
-                    .filter_map(|(k, v)| Some((k.clone(), v.as_f64()?)))
-                    .collect()
-            })
-            .unwrap_or_default()
-    } else {
-        BTreeMap::new()
-    };
-    let skin_path = model.join("skin.obj");
-    let skin = obj::read_obj(&skin_path, Units::Millimetres)?;
-    let reference = if references.reference_ply {
-        let r = ply::read_ply(&reference_path, Units::Millimetres)?.mesh;
-        check_reference_scale(&r, &skin, &reference_path)?;
-        Some(r)
-    } else {
-        None
-    };
+    let mut inputs = ModelInputs::read(subject_dir, model, report)?;
     lap("read inputs", &mut t);
 
-    // The two largest jobs are independent: the distances (reference.ply has about 1.7 M
-    // faces) and the trajectories (seven trials read again).
-    let (map, fits) = rayon::join(
-        || reference.as_ref().map(|r| error_map(&skin, r)),
-        || joint_fits(&subject, &joints, &model_path),
-    );
-    let fits = fits?;
-    drop(reference);
-    let regions = map
-        .as_ref()
-        .map(|m| -> Result<SurfaceRegions> {
-            surface_regions(
-                &m.skin_to_reference,
-                Some((&m.reference_to_skin, &m.reference_nearest_skin_vertex)),
-                &model_regions(model, subject.hand)?,
-                &skin_path,
-            )
-        })
-        .transpose()?;
-    // The calipers on the skin: the model's joints, and the landmarks where the static trial's
-    // markers meet the skin.
-    let skeleton = skeleton_from_records(&joints, subject.hand, &model_path)?;
-    let reference_trial = subject.load_trial(TrialKind::Reference)?;
-    let markers = reference_trial.mean_positions(&landmark_names());
-    let dimensions = dimension_accuracy(
-        &skin,
-        &skeleton,
-        &landmarks_on_skin(&skin, &markers),
-        &subject.dimensions,
-        truth.as_ref().map(|t| &t.0.dimensions),
-    );
-    let link = truth.map(|t| t.1);
+    let measured = measure(&mut inputs, model)?;
     lap(
-        if map.is_some() {
+        if measured.map.is_some() {
             "error map (both directions) and joint trajectories"
         } else {
             "joint trajectories"
@@ -186,88 +58,25 @@ pub fn validate_subject(
     );
 
     std::fs::create_dir_all(report).map_err(|e| Error::io(report, e))?;
-    let mut files: Vec<String> = vec![
-        "metrics.json".into(),
-        "report.html".into(),
-        "report.md".into(),
-    ];
-    let mut map_pictures = None;
-    if let Some(map) = &map {
-        map_pictures = Some(error_map_pictures(
-            &subject.name,
-            map,
-            &skin,
-            &joints,
-            &model_path,
-            report,
-        )?);
-        files.extend(["error-map.png", "error-map-small.png", "error-map.glb"].map(String::from));
-        lap("error map pictures and GLB", &mut t);
-    }
-
-    let distances = map
-        .as_ref()
-        .map(|m| super::distance_plots::distance_histograms(m, report))
-        .transpose()?;
-    let joint_errors = link
-        .as_ref()
-        .map(|l| super::joint_error_plots::joint_error_figure(l, report))
-        .transpose()?;
-    let fit_figures = joint_fit_figures(&fits, report)?;
-    let radii = radius_figure(&fits, report)?;
+    let map_pictures = match &measured.map {
+        Some(map) => {
+            let p = error_map_pictures(
+                &inputs.subject.name,
+                map,
+                &inputs.skin,
+                &inputs.joints,
+                &inputs.model_path,
+                report,
+            )?;
+            lap("error map pictures and GLB", &mut t);
+            Some(p)
+        }
+        None => None,
+    };
+    let (figures, thumbnail_png, top) = charts(&measured, map_pictures, report)?;
     lap("charts (PNG and SVG)", &mut t);
 
-    let (error_map_png, thumbnail_png, top) = match map_pictures {
-        Some(p) => (Some(p.picture), Some(p.thumbnail_png), Some(p.top)),
-        None => (None, None, None),
-    };
-    let figures = ReportFigures {
-        error_map: error_map_png,
-        distances,
-        joint_errors,
-        fits: fit_figures,
-        radii,
-    };
-    for f in figures
-        .distances
-        .iter()
-        .chain(&figures.joint_errors)
-        .chain(&figures.fits)
-        .chain(std::iter::once(&figures.radii))
-    {
-        for p in [&f.png, &f.svg] {
-            files.push(p.file_name().unwrap_or_default().to_string_lossy().into());
-        }
-    }
-    let mut v = SubjectValidation {
-        subject: subject.name.clone(),
-        hand: subject.hand,
-        references,
-        link,
-        link_lengths_mm: link_lengths(&joints),
-        link_length_sd_mm: model_json
-            .get("link_lengths")
-            .and_then(|l| l.as_object())
-            .map(|l| {
-                l.iter()
-                    .filter_map(|(k, v)| Some((k.clone(), v.get("sd_mm")?.as_f64()?)))
-                    .collect()
-            })
-            .unwrap_or_default(),
-        surface: map.as_ref().map(|m| m.skin_to_reference_stats.clone()),
-        surface_regions: regions,
-        surface_reverse: map.as_ref().map(|m| m.reference_to_skin_stats.clone()),
-        reference_vertices: map.as_ref().map(|m| m.reference_vertices),
-        reference_stride: map.as_ref().map(|m| m.reference_stride),
-        colour_scale_top_mm: top,
-        dimensions,
-        joint_fits: fits.iter().map(JointFitSummary::of).collect(),
-        reconstruct_timings_s,
-        validate_timings_s: Vec::new(),
-        warnings,
-        files,
-        thumbnail_png,
-    };
+    let mut v = summary(inputs, measured, &figures, thumbnail_png, top);
     // The report's own time goes into the report: write it last, after measuring.
     let html = super::report_html::subject_html(&v, &figures);
     let md = super::report_md::subject_markdown(&v, &figures);
@@ -288,6 +97,147 @@ pub fn validate_subject(
     Ok((v, figures))
 }
 
+/// What [`measure`] found.
+struct Measured {
+    /// The skin's distances to the reference and back, when the subject has a reference.
+    map: Option<ErrorMap>,
+    regions: Option<SurfaceRegions>,
+    fits: Vec<JointFit>,
+    dimensions: DimensionAccuracy,
+    link: Option<LinkAccuracy>,
+}
+
+/// The measurements: distances and their regions, the joint fits of the trials, the calipers on
+/// the skin and the joint centres against the truth. The reference surface is dropped from
+/// `inputs` once measured (it is the largest thing held).
+fn measure(inputs: &mut ModelInputs, model: &Path) -> Result<Measured> {
+    let reference = inputs.reference.take();
+    let (skin, subject) = (&inputs.skin, &inputs.subject);
+    // The two largest jobs are independent: the distances (reference.ply has about 1.7 M
+    // faces) and the trajectories (seven trials read again).
+    let (map, fits) = rayon::join(
+        || reference.as_ref().map(|r| error_map(skin, r)),
+        || joint_fits(subject, &inputs.joints, &inputs.model_path),
+    );
+    let fits = fits?;
+    drop(reference);
+    let regions = map
+        .as_ref()
+        .map(|m| -> Result<SurfaceRegions> {
+            surface_regions(
+                &m.skin_to_reference,
+                Some((&m.reference_to_skin, &m.reference_nearest_skin_vertex)),
+                &model_regions(model, subject.hand)?,
+                &inputs.skin_path,
+            )
+        })
+        .transpose()?;
+    // The calipers on the skin: the model's joints, and the landmarks where the static trial's
+    // markers meet the skin.
+    let skeleton = skeleton_from_records(&inputs.joints, subject.hand, &inputs.model_path)?;
+    let reference_trial = subject.load_trial(TrialKind::Reference)?;
+    let markers = reference_trial.mean_positions(&landmark_names());
+    let dimensions = dimension_accuracy(
+        skin,
+        &skeleton,
+        &landmarks_on_skin(skin, &markers),
+        &subject.dimensions,
+        inputs.truth.as_ref().map(|t| &t.0.dimensions),
+    );
+    let link = inputs.truth.take().map(|t| t.1);
+    Ok(Measured {
+        map,
+        regions,
+        fits,
+        dimensions,
+        link,
+    })
+}
+
+/// The charts in `report` (PNG and SVG) and the figures the report shows; with the error map's
+/// thumbnail and colour-scale top when there is a map.
+fn charts(
+    measured: &Measured,
+    map_pictures: Option<ErrorMapPictures>,
+    report: &Path,
+) -> Result<(ReportFigures, Option<Vec<u8>>, Option<f64>)> {
+    let distances = measured
+        .map
+        .as_ref()
+        .map(|m| super::distance_plots::distance_histograms(m, report))
+        .transpose()?;
+    let joint_errors = measured
+        .link
+        .as_ref()
+        .map(|l| super::joint_error_plots::joint_error_figure(l, report))
+        .transpose()?;
+    let fit_figures = joint_fit_figures(&measured.fits, report)?;
+    let radii = radius_figure(&measured.fits, report)?;
+    let (error_map_png, thumbnail_png, top) = match map_pictures {
+        Some(p) => (Some(p.picture), Some(p.thumbnail_png), Some(p.top)),
+        None => (None, None, None),
+    };
+    let figures = ReportFigures {
+        error_map: error_map_png,
+        distances,
+        joint_errors,
+        fits: fit_figures,
+        radii,
+    };
+    Ok((figures, thumbnail_png, top))
+}
+
+/// `metrics.json`'s content (the report's runtimes are added by the caller, last).
+fn summary(
+    inputs: ModelInputs,
+    measured: Measured,
+    figures: &ReportFigures,
+    thumbnail_png: Option<Vec<u8>>,
+    top: Option<f64>,
+) -> SubjectValidation {
+    let mut files: Vec<String> = vec![
+        "metrics.json".into(),
+        "report.html".into(),
+        "report.md".into(),
+    ];
+    if measured.map.is_some() {
+        files.extend(["error-map.png", "error-map-small.png", "error-map.glb"].map(String::from));
+    }
+    for f in figures
+        .distances
+        .iter()
+        .chain(&figures.joint_errors)
+        .chain(&figures.fits)
+        .chain(std::iter::once(&figures.radii))
+    {
+        for p in [&f.png, &f.svg] {
+            files.push(p.file_name().unwrap_or_default().to_string_lossy().into());
+        }
+    }
+    let map = measured.map.as_ref();
+    SubjectValidation {
+        subject: inputs.subject.name.clone(),
+        hand: inputs.subject.hand,
+        references: inputs.references,
+        link: measured.link,
+        link_lengths_mm: link_lengths(&inputs.joints),
+        link_length_sd_mm: inputs.link_length_sd_mm,
+        surface: map.map(|m| m.skin_to_reference_stats.clone()),
+        surface_regions: measured.regions,
+        surface_reverse: map.map(|m| m.reference_to_skin_stats.clone()),
+        reference_vertices: map.map(|m| m.reference_vertices),
+        reference_stride: map.map(|m| m.reference_stride),
+        colour_scale_top_mm: top,
+        dimensions: measured.dimensions,
+        joint_fits: measured.fits.iter().map(JointFitSummary::of).collect(),
+        reconstruct_timings_s: inputs.reconstruct_timings_s,
+        validate_timings_s: Vec::new(),
+        warnings: inputs.warnings,
+        files,
+        thumbnail_png,
+    }
+}
+
 /// What [`error_map_pictures`] made.
 struct ErrorMapPictures {
     /// `error-map.png`: file and PNG bytes.
@@ -303,7 +253,7 @@ struct ErrorMapPictures {
 /// with vertex colours).
 fn error_map_pictures(
     name: &str,
-    map: &super::error_map::ErrorMap,
+    map: &ErrorMap,
     skin: &crate::geometry::TriMesh,
     joints: &BTreeMap<String, crate::skeleton::record::JointRecord>,
     model_path: &Path,

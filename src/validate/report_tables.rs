@@ -55,14 +55,14 @@ impl Table {
 }
 
 /// Centre errors above this are highlighted, mm.
-pub const FLAG_CENTRE_MM: f64 = 2.0;
+pub(crate) const FLAG_CENTRE_MM: f64 = 2.0;
 /// Axis errors above this are highlighted, degrees.
-pub const FLAG_AXIS_DEG: f64 = 3.0;
+pub(crate) const FLAG_AXIS_DEG: f64 = 3.0;
 /// Differences from the given dimensions above this are highlighted, mm.
-pub const FLAG_DIMENSION_MM: f64 = 0.5;
+pub(crate) const FLAG_DIMENSION_MM: f64 = 0.5;
 /// Differences from the true dimensions above this are highlighted, mm (the simulated
 /// calipers alone are off by up to about 1 mm).
-pub const FLAG_DIMENSION_TRUE_MM: f64 = 1.0;
+pub(crate) const FLAG_DIMENSION_TRUE_MM: f64 = 1.0;
 
 fn f2(x: f64) -> String {
     if x.is_finite() {

@@ -25,7 +25,7 @@ pub struct SuiteRow<'a> {
 
 /// Repeated sessions of one simulated hand: subjects whose options differ only in `repeat`.
 #[derive(Clone, Debug, PartialEq)]
-pub struct RepeatGroup {
+pub(crate) struct RepeatGroup {
     /// The subjects, in suite order.
     pub subjects: Vec<String>,
     /// Link name -> (mean, sample SD, true length) over the sessions, mm.
@@ -33,7 +33,7 @@ pub struct RepeatGroup {
 }
 
 /// The groups of [`RepeatGroup`] with at least two sessions.
-pub fn repeat_groups(rows: &[SuiteRow]) -> Vec<RepeatGroup> {
+pub(crate) fn repeat_groups(rows: &[SuiteRow]) -> Vec<RepeatGroup> {
     let mut groups: Vec<(SynthOptions, Vec<&SuiteRow>)> = Vec::new();
     for r in rows {
         let key = SynthOptions {
@@ -76,7 +76,7 @@ pub fn repeat_groups(rows: &[SuiteRow]) -> Vec<RepeatGroup> {
 
 /// `to` relative to the folder `from` (both made absolute against the current folder), with
 /// forward slashes, for links between reports.
-pub fn relative_link(from: &Path, to: &Path) -> String {
+pub(crate) fn relative_link(from: &Path, to: &Path) -> String {
     let abs = |p: &Path| -> Vec<String> {
         let p = if p.is_absolute() {
             p.to_path_buf()

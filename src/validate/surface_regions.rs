@@ -43,7 +43,7 @@ pub const WRIST_BAND_MM: f64 = 15.0;
 
 /// The hypothenar covers this proximal share of the palm's length at the little finger (the
 /// eminence ends near the distal palmar crease, about a quarter of the way short of the MCP).
-pub const HYPOTHENAR_LENGTH: f64 = 0.75;
+pub(crate) const HYPOTHENAR_LENGTH: f64 = 0.75;
 
 /// An anatomical region of the hand's skin.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize)]
@@ -101,7 +101,11 @@ fn digit(link: usize) -> Option<usize> {
 
 /// The regions of every vertex of `mesh` (the template in its rest posture, with its skin
 /// `weights` and `skeleton`), by the rule in the module's documentation.
-pub fn template_regions(mesh: &TriMesh, weights: &LinkWeights, skeleton: &Skeleton) -> Vec<Region> {
+pub(crate) fn template_regions(
+    mesh: &TriMesh,
+    weights: &LinkWeights,
+    skeleton: &Skeleton,
+) -> Vec<Region> {
     template_patches(mesh, weights, skeleton)
         .into_iter()
         .map(|p| p.0)

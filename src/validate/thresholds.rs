@@ -21,7 +21,7 @@ use std::path::Path;
 pub const FILE: &str = "thresholds.toml";
 
 /// Every figure checked: name (as in the thresholds file) and what it is.
-pub const FIGURES: [(&str, &str); 9] = [
+pub(crate) const FIGURES: [(&str, &str); 9] = [
     (
         "skin_mean_mm",
         "mean distance of skin.obj to reference.ply, mm",
@@ -239,7 +239,7 @@ impl Thresholds {
     }
 
     /// The limits of suite subject `name`: the default's, with its own table's on top.
-    pub fn suite_limits(&self, name: &str) -> Limits {
+    pub(crate) fn suite_limits(&self, name: &str) -> Limits {
         let mut l = self.default.clone();
         if let Some(own) = self.subject.get(name) {
             l.0.extend(own.0.iter().map(|(k, v)| (k.clone(), *v)));

@@ -37,7 +37,7 @@ pub fn smin(a: f64, b: f64, k: f64) -> f64 {
 }
 
 /// Smooth maximum (intersection), the mirror of [`smin`].
-pub fn smax(a: f64, b: f64, k: f64) -> f64 {
+pub(crate) fn smax(a: f64, b: f64, k: f64) -> f64 {
     -smin(-a, -b, k)
 }
 

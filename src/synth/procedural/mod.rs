@@ -25,7 +25,7 @@ use crate::skeleton::{JointFrame, Pose, Skeleton};
 use nalgebra::{Matrix3, Rotation3};
 
 /// Grid step of the polygonised skin, mm.
-pub const MESH_VOXEL_MM: f64 = 0.9;
+pub(crate) const MESH_VOXEL_MM: f64 = 0.9;
 
 /// Everything of a built procedural hand (right hand, body frame), for the tests and tools.
 #[derive(Clone, Debug)]
@@ -38,7 +38,11 @@ pub struct BuiltHand {
 
 /// Build the right hand with proportions `p` and neutral skeleton `bs` in `posture` (relative
 /// to the neutral, straight hand).
-pub fn build_right_hand(p: &Proportions, bs: &BodySkeleton, posture: Pose) -> Result<BuiltHand> {
+pub(crate) fn build_right_hand(
+    p: &Proportions,
+    bs: &BodySkeleton,
+    posture: Pose,
+) -> Result<BuiltHand> {
     let tf = link_transforms(&bs.skeleton, &posture);
     let posed = posed_skeleton(&bs.skeleton, &tf);
     let field = implicit::build_field(p, bs, &tf, &posed);

@@ -54,7 +54,7 @@ pub struct Table {
 }
 
 /// The proportion model's coefficients (see the module documentation for the sources).
-pub const TABLE: Table = Table {
+pub(crate) const TABLE: Table = Table {
     hand_length: [(194.0, 9.0), (180.0, 9.0)],
     hand_breadth: [(90.0, 4.0), (79.0, 4.0)],
     size_loading: 0.78,
@@ -111,7 +111,7 @@ impl Proportions {
     }
 
     /// Draw a subject of the given sex.
-    pub fn sample_sex(rng: &mut Rng, sex: Sex) -> Proportions {
+    pub(crate) fn sample_sex(rng: &mut Rng, sex: Sex) -> Proportions {
         let t = &TABLE;
         let s = sex as usize;
         let size = rng.normal();

@@ -1,0 +1,1234 @@
+//! Simulated grasp motion trials with truth (subject-format spec, section 5): the true hand
+//! reaches for a shipped part, closes on it in a power grasp, holds it, lifts it and sets it
+//! down, and lets go, captured with the skin markers of the static trial, the palm and forearm
+//! markers and markers on the part, under the capture's error model; the truth is every joint
+//! centre in the lab frame per frame, and the part's pose.
+//!
+//! Phases, as fractions of the trial: reach 0-0.22 (hand open, moving to the part), close
+//! 0.22-0.40, hold 0.40-0.50, lift 0.50-0.80 (up 80 mm by 0.62, held, set down by 0.78; the part
+//! moves with the hand), release 0.80-1 (the digits open by 0.90, the hand withdraws from 0.86).
+//!
+//! The closure is found, not scripted: each digit flexes in stages (a finger: the MCP with the
+//! PIP and DIP following, then the PIP with the DIP coupled at two thirds of it, then the DIP
+//! alone; the thumb: the CMC opposing with the MCP and IP following, then the MCP and IP) until
+//! one of its moving links comes within 0.5 mm of the part's surface, each link taken as a
+//! capsule about its bone of half the digit's measured-by-definition thickness, against the
+//! part's exact signed distance function. That is a model of the finger's skin, not the skin
+//! itself: the truth says so by giving capsule clearances, not contact areas.
+
+use super::capture::{MarkerDef, StaDriver};
+use super::ErrorModel;
+use crate::anatomy::{Finger, Joint, Link, Side};
+use crate::error::{Error, Result};
+use crate::geometry::{Point, TriMesh, Vec3};
+use crate::grasp::parts::Part;
+use crate::grasp::scene::{parse_scene, Approach, Scene};
+use crate::mocap::trajectories::Trajectories;
+use crate::rng::Rng;
+use crate::skeleton::forward_kinematics::{link_transforms, posed_skeleton};
+use crate::skeleton::{Pose, Skeleton};
+use nalgebra::{Isometry3, Matrix3, Rotation3, Translation3, UnitQuaternion};
+use serde::{Deserialize, Serialize};
+use std::collections::BTreeMap;
+use std::path::Path;
+
+/// Default length of a grasp trial, s.
+pub const DEFAULT_MOTION_S: f64 = 4.0;
+/// Allowed lengths of a grasp trial, s.
+pub const MOTION_S_RANGE: (f64, f64) = (1.0, 60.0);
+
+/// A grasp the simulator can perform: a shipped scene (embedded, so that the simulator needs no
+/// files) and its part's exact signed distance.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct GraspTask {
+    /// The motion's name (`[motions]` key, file stem).
+    pub name: &'static str,
+    /// The shipped scene file's name (`scenes/NAME`).
+    pub scene_file: &'static str,
+    /// Its text.
+    pub scene_text: &'static str,
+    /// Its part.
+    pub part: Part,
+}
+
+/// The grasp trials `synth` writes.
+pub const GRASP_TASKS: [GraspTask; 1] = [GraspTask {
+    name: "grasp_bottle",
+    scene_file: "bottle.toml",
+    scene_text: include_str!("../../scenes/bottle.toml"),
+    part: Part::Bottle,
+}];
+
+/// Phase boundaries as fractions of the trial: (name, start, end).
+pub const PHASES: [(&str, f64, f64); 5] = [
+    ("reach", 0.0, 0.22),
+    ("close", 0.22, 0.40),
+    ("hold", 0.40, 0.50),
+    ("lift", 0.50, 0.80),
+    ("release", 0.80, 1.0),
+];
+
+/// How high the part is lifted, mm.
+const LIFT_MM: f64 = 80.0;
+/// Clearance at which a link counts as touching the part, mm.
+const TOUCH_MM: f64 = 0.5;
+
+/// The errors of a grasp trial beyond those of the calibration trials' model: occlusion grows as
+/// the hand closes (the digits hide each other and the part hides the palmar side), and a few
+/// labels are swapped where closed digits bring markers together.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct GraspErrors {
+    /// Fraction of frames a marker is hidden for with the hand open.
+    pub gap_open: f64,
+    /// The same for a digit's marker with the hand closed on the part (the part markers get half
+    /// the increase; palm and forearm markers keep `gap_open`).
+    pub gap_closed: f64,
+    /// Number of label swaps (pairs of neighbouring digits' markers exchanged for 3-12 frames).
+    pub swaps: usize,
+}
+
+impl GraspErrors {
+    /// From the capture's error model: the calibration trials' gap fraction with the hand open,
+    /// six times it (at most 30 %) closed, and two swaps when the model has any error at all.
+    /// An assumption of the simulator, after the common experience that grasps lose markers far
+    /// more than free motions, not a measured distribution.
+    pub fn from_model(err: &ErrorModel) -> GraspErrors {
+        GraspErrors {
+            gap_open: err.gap_fraction,
+            gap_closed: (6.0 * err.gap_fraction).min(0.3),
+            swaps: if err.noise_mm > 0.0 || err.gap_fraction > 0.0 {
+                2
+            } else {
+                0
+            },
+        }
+    }
+}
+
+/// One joint's truth over the trial.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct JointTrack {
+    /// The true centre per frame, mm, lab frame.
+    pub centre: Vec<[f64; 3]>,
+    /// The joint's angles per frame relative to the subject's reference posture, degrees
+    /// (`[flexion, abduction, axial]`, the skeleton's conventions).
+    pub angles_deg: Vec<[f64; 3]>,
+}
+
+/// The part's true pose over the trial: `x_lab = rotation · x_part + position`.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct PartTrack {
+    /// The shipped scene the part and its markers come from (`scenes/NAME`).
+    pub scene: String,
+    /// Origin of the part's frame per frame, mm, lab frame.
+    pub position: Vec<[f64; 3]>,
+    /// Rotation per frame, 3x3 rows.
+    pub rotation: Vec<[[f64; 3]; 3]>,
+    /// The part markers in the part's frame, mm (the scene's `[part.markers]`).
+    pub markers: BTreeMap<String, [f64; 3]>,
+}
+
+/// A phase of the motion: frames `first..=last`.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Phase {
+    /// reach, close, hold, lift or release.
+    pub name: String,
+    /// First frame.
+    pub first: usize,
+    /// Last frame.
+    pub last: usize,
+}
+
+/// A swap of two labels over frames `first..=last`: the file's track of `markers[0]` holds the
+/// second marker's positions there, and the other way round.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct LabelSwap {
+    /// The two labels.
+    pub markers: [String; 2],
+    /// First frame.
+    pub first: usize,
+    /// Last frame.
+    pub last: usize,
+}
+
+/// `truth_motion/NAME.json`.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct MotionTruth {
+    /// Always "mm".
+    pub units: String,
+    /// Always "lab": the lab frame of the trial (that of the static trial).
+    pub frame: String,
+    /// Frame rate, Hz.
+    pub rate: f64,
+    /// Number of frames.
+    pub frames: usize,
+    /// Every joint of the link model, by name.
+    pub joints: BTreeMap<String, JointTrack>,
+    /// The part's pose.
+    pub part: PartTrack,
+    /// The motion's phases.
+    pub phases: Vec<Phase>,
+    /// The closed grasp's angles relative to the reference posture, degrees, by joint.
+    pub grasp_deg: BTreeMap<String, [f64; 3]>,
+    /// Per link of the digits: the capsule clearance to the part in the held grasp, mm (the
+    /// capsule about the bone, radius half the digit's thickness; <= 0.5 touches). A model of
+    /// the skin, not true contact areas.
+    pub grasp_clearance_mm: BTreeMap<String, f64>,
+    /// Which link each marker rides (the part markers: `PART`).
+    pub marker_links: BTreeMap<String, String>,
+    /// Label swaps written into the trial.
+    pub label_swaps: Vec<LabelSwap>,
+}
+
+/// A simulated grasp trial in memory.
+#[derive(Clone, Debug)]
+pub struct GraspTrial {
+    /// The motion's name.
+    pub name: String,
+    /// The captured markers (lab frame, mm), labels in a fixed order (see `simulate_grasp`).
+    pub trajectories: Trajectories,
+    /// The truth.
+    pub truth: MotionTruth,
+    /// The skin markers' definitions (for tests).
+    pub markers: Vec<MarkerDef>,
+    /// The forearm's rigid motion per frame (the pose's root; for tests).
+    pub root: Vec<Isometry3<f64>>,
+    /// Joint angles per frame relative to the reference posture, degrees, [`Joint::ALL`] order.
+    pub angles: Vec<Vec<[f64; 3]>>,
+    /// Visibility per marker (trajectory order) per frame before swaps (for tests).
+    pub visible: Vec<Vec<bool>>,
+}
+
+/// The read, checked scene of a task.
+pub fn task_scene(task: &GraspTask) -> Result<Scene> {
+    parse_scene(task.scene_text, Path::new(task.scene_file))
+}
+
+/// Which link a landmark marker rides (spec section 5): a joint's dorsal marker the link
+/// proximal to the joint, a nail the distal link, the thumb metacarpal's two markers `T_META`,
+/// the MCP laterals and palm markers `PALM`, the styloids `ARM`.
+pub fn landmark_link(name: &str) -> Option<Link> {
+    if let Some(j) = Joint::from_name(name) {
+        return Some(j.parent_link());
+    }
+    Some(match name {
+        "T_NAIL" => Link::TDist,
+        "I_NAIL" => Link::IDist,
+        "M_NAIL" => Link::MDist,
+        "R_NAIL" => Link::RDist,
+        "L_NAIL" => Link::LDist,
+        "T_MC_1" | "T_MC_2" => Link::TMeta,
+        "I_MCP_LAT" | "L_MCP_LAT" | "PALM_1" | "PALM_2" | "PALM_3" | "PALM_4" => Link::Palm,
+        "WRIST_RAD" | "WRIST_ULN" | "ARM_1" | "ARM_2" | "ARM_3" => Link::Arm,
+        _ => return None,
+    })
+}
+
+/// The joint whose flexion slides the skin under a landmark marker, and the slide's scale
+/// relative to the skin range: the dorsal skin over a knuckle is stretched over it as the joint
+/// flexes (the most), over the thumb metacarpal by the MCP, at a nail by the DIP (little: the
+/// nail is stiff), at the MCP laterals by their MCP, at the styloids by the wrist.
+fn landmark_driver(name: &str) -> (Joint, f64) {
+    if let Some(j) = Joint::from_name(name) {
+        return (j, 2.0);
+    }
+    let j = match name {
+        "T_NAIL" => Joint::TIp,
+        "I_NAIL" => Joint::IDip,
+        "M_NAIL" => Joint::MDip,
+        "R_NAIL" => Joint::RDip,
+        "L_NAIL" => Joint::LDip,
+        "T_MC_1" | "T_MC_2" => Joint::TMcp,
+        "I_MCP_LAT" => Joint::IMcp,
+        "L_MCP_LAT" => Joint::LMcp,
+        _ => Joint::Wrist,
+    };
+    (j, if name.ends_with("_NAIL") { 0.5 } else { 1.0 })
+}
+
+/// The definition of a landmark's skin marker for a grasp trial: at `position` (its placed
+/// centre in the reference posture), on its link, sliding by `range` mm (times the driver's
+/// scale) over 90° of its driving joint's flexion, along the skin (tangent to `normal`) in a
+/// random direction. An assumption of the simulator, as the calibration trials' skin slide.
+pub fn landmark_marker(
+    name: &str,
+    position: Point,
+    normal: &Vec3,
+    range: (f64, f64),
+    rng: &mut Rng,
+) -> Option<MarkerDef> {
+    let link = landmark_link(name)?;
+    let (joint, scale) = landmark_driver(name);
+    let v = rng.unit_vector();
+    let dir = (v - normal * v.dot(normal))
+        .try_normalize(1e-9)
+        .unwrap_or_else(Vec3::x);
+    let size = rng.range(range.0, range.1) * scale;
+    Some(MarkerDef {
+        name: name.to_string(),
+        link,
+        position,
+        sta: vec![StaDriver {
+            joint,
+            dof: 0,
+            range_deg: 90.0,
+            slide: dir * size,
+            spin: Vec3::zeros(),
+        }],
+        sta_centre: position,
+    })
+}
+
+fn smooth(x: f64) -> f64 {
+    let x = x.clamp(0.0, 1.0);
+    x * x * (3.0 - 2.0 * x)
+}
+
+/// `smooth` of `u` over `[a, b]`.
+fn ramp(u: f64, a: f64, b: f64) -> f64 {
+    smooth((u - a) / (b - a))
+}
+
+/// How closed the hand is at fraction `u` of the trial, 0-1.
+pub fn closure(u: f64) -> f64 {
+    ramp(u, 0.22, 0.40) * (1.0 - ramp(u, 0.80, 0.90))
+}
+
+/// How far the part is lifted at fraction `u`, 0-1.
+fn lifted(u: f64) -> f64 {
+    ramp(u, 0.50, 0.62) * (1.0 - ramp(u, 0.68, 0.78))
+}
+
+/// The capsules of the digits and the part, for the closing.
+struct Closer<'a> {
+    sk: &'a Skeleton,
+    root: Isometry3<f64>,
+    part_inv: Isometry3<f64>,
+    part: Part,
+    /// Capsule radius per link, mm.
+    radius: [f64; 17],
+}
+
+impl Closer<'_> {
+    /// The smallest clearance between the capsules of `links` and the part at `angles` (degrees).
+    fn clearance(&self, angles: &[[f64; 3]; 16], links: &[Link]) -> f64 {
+        let mut pose = Pose::zero();
+        for (j, a) in Joint::ALL.iter().zip(angles) {
+            pose = pose.with_deg(*j, *a);
+        }
+        pose.root = self.root;
+        let tf = link_transforms(self.sk, &pose);
+        links
+            .iter()
+            .map(|&l| {
+                let j = l.joint().expect("digit links have a joint");
+                let t = tf[l.index()];
+                let (a, b) = (t * self.sk.centre(j), t * self.sk.distal_end(j));
+                (0..=8)
+                    .map(|k| {
+                        let p = a + (b - a) * (k as f64 / 8.0);
+                        self.part.sdf(&(self.part_inv * p)) - self.radius[l.index()]
+                    })
+                    .fold(f64::INFINITY, f64::min)
+            })
+            .fold(f64::INFINITY, f64::min)
+    }
+
+    /// Step `angles` by `step` (which returns false at the stage's limit) until one of `links`
+    /// comes within [`TOUCH_MM`]; the last posture before that is kept. Returns whether a link
+    /// touched.
+    fn flex_until(
+        &self,
+        angles: &mut [[f64; 3]; 16],
+        links: &[Link],
+        mut step: impl FnMut(&mut [[f64; 3]; 16], usize) -> bool,
+    ) -> bool {
+        if self.clearance(angles, links) <= TOUCH_MM {
+            return true;
+        }
+        for k in 1..2000 {
+            let mut next = *angles;
+            if !step(&mut next, k) {
+                return false;
+            }
+            if self.clearance(&next, links) <= TOUCH_MM {
+                return true;
+            }
+            *angles = next;
+        }
+        false
+    }
+
+    /// The power grasp's angles relative to the reference posture, degrees.
+    fn close(&self) -> [[f64; 3]; 16] {
+        let mut a = [[0.0; 3]; 16];
+        for f in &Finger::ALL[1..] {
+            let [mcp, pip, dip] = f.joints().map(|j| j.index());
+            let [prox, mid, dist] = f.links();
+            // The DIP follows the PIP at two thirds of its flexion, less where the distal link
+            // would reach into the part (down to 10° of extension); `false` if even that does.
+            let fit_dip = |x: &mut [[f64; 3]; 16]| -> bool {
+                let mut d = x[pip][0] * 2.0 / 3.0;
+                loop {
+                    x[dip][0] = d;
+                    if self.clearance(x, &[dist]) > TOUCH_MM {
+                        return true;
+                    }
+                    d -= 2.0;
+                    if d < -10.0 {
+                        return false;
+                    }
+                }
+            };
+            // The MCP and PIP together, 0.5° steps, until the proximal or middle link touches.
+            self.flex_until(&mut a, &[prox, mid], |x, k| {
+                x[mcp][0] = (0.5 * k as f64).min(80.0);
+                x[pip][0] = 0.5 * k as f64;
+                x[pip][0] <= 100.0 && fit_dip(x)
+            });
+            // Then the PIP until the middle link touches, then the DIP alone.
+            let p0 = a[pip][0];
+            self.flex_until(&mut a, &[mid], |x, k| {
+                x[pip][0] = p0 + 0.5 * k as f64;
+                x[pip][0] <= 100.0 && fit_dip(x)
+            });
+            let d0 = a[dip][0];
+            self.flex_until(&mut a, &[dist], |x, k| {
+                x[dip][0] = d0 + 0.5 * k as f64;
+                x[dip][0] <= 80.0
+            });
+        }
+        // The thumb: of the postures of a grid (CMC flexion -20..40°, palmar abduction
+        // -20..50°, MCP 0..50° with the IP at 1.2 times it), those clear of the part whose
+        // distal link touches it, the one nearest the opposition (CMC 20°, 40°); if none touches,
+        // the clear one whose distal link comes nearest.
+        let [cmc, mcp, ip] = Finger::Thumb.joints().map(|j| j.index());
+        let [_, prox, dist] = Finger::Thumb.links();
+        let mut best: Option<(bool, f64, [[f64; 3]; 16])> = None;
+        for fl in (0..=12).map(|k| -20.0 + 5.0 * k as f64) {
+            for ab in (0..=14).map(|k| -20.0 + 5.0 * k as f64) {
+                for m in (0..=10).map(|k| 5.0 * k as f64) {
+                    let mut x = a;
+                    x[cmc] = [fl, ab, 0.0];
+                    x[mcp][0] = m;
+                    x[ip][0] = (1.2 * m).min(70.0);
+                    let (cp, cd) = (self.clearance(&x, &[prox]), self.clearance(&x, &[dist]));
+                    if cp < TOUCH_MM || cd < TOUCH_MM {
+                        continue;
+                    }
+                    let touches = cd <= TOUCH_MM + 1.5;
+                    let score = if touches {
+                        (fl - 20.0).hypot(ab - 40.0) + 0.1 * m
+                    } else {
+                        cd
+                    };
+                    let better = match &best {
+                        None => true,
+                        Some((t, s, _)) => (touches && !t) || (touches == *t && score < *s),
+                    };
+                    if better {
+                        best = Some((touches, score, x));
+                    }
+                }
+            }
+        }
+        if let Some((_, _, x)) = best {
+            a = x;
+        }
+        a
+    }
+}
+
+/// The grasp frame of a hand (as [`crate::grasp::plan::grasp_frame`], from its skeleton and skin
+/// alone): origin on the palm's skin midway between the wrist and the MCPs, z out of the palm,
+/// y toward the fingers.
+fn grasp_frame(sk: &Skeleton, skin: &TriMesh) -> Isometry3<f64> {
+    let palmar = -sk.joint(Joint::Wrist).y();
+    let mcp = [Joint::IMcp, Joint::MMcp, Joint::RMcp, Joint::LMcp];
+    let centre = Point::from(
+        (mcp.iter().map(|&j| sk.centre(j).coords).sum::<Vec3>() / 4.0
+            + sk.centre(Joint::Wrist).coords)
+            / 2.0,
+    );
+    let along = sk.centre(Joint::MMcp) - sk.centre(Joint::Wrist);
+    let y = (along - palmar * palmar.dot(&along)).normalize();
+    let x = y.cross(&palmar);
+    let mut depth = 0.0f64;
+    for v in &skin.vertices {
+        let r = v - centre;
+        let lateral = r - palmar * palmar.dot(&r);
+        if lateral.norm() < 15.0 {
+            depth = depth.max(palmar.dot(&r));
+        }
+    }
+    let rot = Rotation3::from_basis_unchecked(&[x, y, palmar]);
+    Isometry3::from_parts(
+        Translation3::from((centre + palmar * depth).coords),
+        UnitQuaternion::from_rotation_matrix(&rot),
+    )
+}
+
+/// The scene's approach for `side`: scenes give it for a right hand; a left hand takes its
+/// mirror image through the part's x = 0 plane (the shipped grasp parts are symmetric about it),
+/// with the grasp frame's x flipped to keep it right-handed.
+fn approach_for(scene: &Scene, side: Side) -> Result<Isometry3<f64>> {
+    let a = match scene.approach {
+        Approach::Given(a) => a,
+        Approach::Auto => {
+            return Err(Error::input(
+                &scene.path,
+                "grasp.approach: the simulated grasp needs a given approach, not \"auto\"",
+            ))
+        }
+    };
+    if side == Side::Right {
+        return Ok(a);
+    }
+    let s = Matrix3::from_diagonal(&Vec3::new(-1.0, 1.0, 1.0));
+    let r = s * a.rotation.to_rotation_matrix().into_inner() * s;
+    let t = s * a.translation.vector;
+    Ok(Isometry3::from_parts(
+        Translation3::from(t),
+        UnitQuaternion::from_rotation_matrix(&Rotation3::from_matrix_unchecked(r)),
+    ))
+}
+
+/// Inputs of [`simulate_grasp`] that come from the simulated subject.
+pub struct GraspInputs<'a> {
+    /// The true skeleton in the reference posture, lab frame.
+    pub skeleton: &'a Skeleton,
+    /// The true skin in the reference posture, lab frame.
+    pub skin: &'a TriMesh,
+    /// Error-free dimensions by name (for the digits' capsule radii).
+    pub dimensions: &'a BTreeMap<String, f64>,
+    /// The skin, palm and forearm markers, placed as for the static trial.
+    pub markers: Vec<MarkerDef>,
+}
+
+/// Simulate the grasp `task` with the true hand of `inp`: `duration_s` seconds at `rate` Hz,
+/// noise `err.noise_mm` on every marker, the markers' skin slide, gaps and swaps by `gerr`, every
+/// draw from `rng`. Labels: the skin markers in `inp.markers` order, then `PART_1`..`PART_n`.
+pub fn simulate_grasp(
+    task: &GraspTask,
+    inp: GraspInputs,
+    duration_s: f64,
+    rate: f64,
+    err: &ErrorModel,
+    gerr: &GraspErrors,
+    rng: &Rng,
+) -> Result<GraspTrial> {
+    if !(duration_s.is_finite() && (MOTION_S_RANGE.0..=MOTION_S_RANGE.1).contains(&duration_s)) {
+        return Err(Error::invalid(format!(
+            "motion trial length {duration_s} s is outside {}-{} s",
+            MOTION_S_RANGE.0, MOTION_S_RANGE.1
+        )));
+    }
+    let scene = task_scene(task)?;
+    if scene.part_markers.is_empty() {
+        return Err(Error::input(
+            &scene.path,
+            "part.markers: the simulated grasp needs markers on the part",
+        ));
+    }
+    let sk = inp.skeleton;
+    let part_pose = scene.part_pose;
+    let approach = approach_for(&scene, sk.side)?;
+    let g = grasp_frame(sk, inp.skin);
+    // The hand's rigid motion that puts its grasp frame at the scene's approach.
+    let at_approach = part_pose * approach * g.inverse();
+    // Bring the palm in along its normal until its skin is 1 mm off the part (the thenar or a
+    // flexed digit may stop it first), from 15 mm back.
+    let palmar = at_approach.rotation * g.rotation * Vec3::z();
+    // The palm's skin: the vertices between the wrist and the MCPs, across the MCPs' span (with
+    // the thenar; without the thumb and the fingers, which the closing places).
+    let gi = g.inverse();
+    let (xi, xl) = (
+        (gi * sk.centre(Joint::IMcp)).x,
+        (gi * sk.centre(Joint::LMcp)).x,
+    );
+    let (y0, y1) = (
+        (gi * sk.centre(Joint::Wrist)).y,
+        (gi * sk.centre(Joint::MMcp)).y,
+    );
+    let span = |v: &Point| {
+        let q = gi * v;
+        q.x >= xi.min(xl) - 5.0 && q.x <= xi.max(xl) + 5.0 && q.y >= y0 && q.y <= y1
+    };
+    let skin: Vec<Point> = inp
+        .skin
+        .vertices
+        .iter()
+        .filter(|v| span(v))
+        .map(|v| at_approach * v)
+        .collect();
+    let inv = part_pose.inverse();
+    let min_sdf = |d: f64| {
+        skin.iter()
+            .map(|v| task.part.sdf(&(inv * (v + palmar * d))))
+            .fold(f64::INFINITY, f64::min)
+    };
+    let mut d = -15.0;
+    while min_sdf(d) < 1.0 {
+        d -= 5.0;
+        if d < -100.0 {
+            return Err(Error::invalid(format!(
+                "{}: the approach puts the hand inside the part",
+                task.name
+            )));
+        }
+    }
+    while d < 60.0 && min_sdf(d + 0.5) >= 1.0 {
+        d += 0.5;
+    }
+    let grasp_root = Translation3::from(palmar * d) * at_approach;
+    if log::log_enabled!(log::Level::Debug) {
+        let worst = skin
+            .iter()
+            .min_by(|a, b| {
+                let f = |v: &Point| task.part.sdf(&(inv * (v + palmar * d)));
+                f(a).total_cmp(&f(b))
+            })
+            .map(|v| (at_approach * g).inverse() * v);
+        log::debug!(
+            "{}: palm brought {d:.1} mm in; {} palm vertices, nearest {:?} (grasp frame)",
+            task.name,
+            skin.len(),
+            worst
+        );
+    }
+
+    // Capsule radii: half the true thickness of the digit at its PIP (IP) and DIP.
+    let dim = |k: String| -> Result<f64> {
+        inp.dimensions
+            .get(&k)
+            .copied()
+            .ok_or_else(|| Error::invalid(format!("the true hand has no dimension {k}")))
+    };
+    let mut radius = [0.0; 17];
+    for f in Finger::ALL {
+        let n = f.number();
+        let prox = dim(format!("finger{n}_thickness_proximal"))? / 2.0;
+        let dist = if f == Finger::Thumb {
+            prox
+        } else {
+            dim(format!("finger{n}_thickness_distal"))? / 2.0
+        };
+        let [a, b, c] = f.links();
+        radius[a.index()] = prox;
+        radius[b.index()] = prox;
+        radius[c.index()] = dist;
+    }
+    let closer = Closer {
+        sk,
+        root: grasp_root,
+        part_inv: inv,
+        part: task.part,
+        radius,
+    };
+    let closed = closer.close();
+    let digit_links: Vec<Link> = Finger::ALL
+        .iter()
+        .flat_map(|f| f.links())
+        .filter(|l| *l != Link::TMeta)
+        .collect();
+    let grasp_clearance_mm: BTreeMap<String, f64> = digit_links
+        .iter()
+        .map(|&l| (l.name().to_string(), closer.clearance(&closed, &[l])))
+        .collect();
+    log::debug!(
+        "{}: palm {d:.1} mm from the approach, clearances {:?}",
+        task.name,
+        grasp_clearance_mm
+    );
+
+    // The hand's path: from 60 mm back off the palm and 50 mm up, turned 20° about the vertical
+    // through the wrist, to the grasp; it withdraws 60 mm back and 30 mm up, turned back 10°.
+    let wrist = sk.centre(Joint::Wrist);
+    let offset = |back: f64, up: f64, deg: f64| {
+        let w = grasp_root * wrist;
+        let turn = UnitQuaternion::from_axis_angle(&Vec3::z_axis(), deg.to_radians());
+        let about = Isometry3::from_parts(Translation3::from(w.coords - turn * w.coords), turn);
+        Translation3::from(-palmar * back + Vec3::z() * up) * about * grasp_root
+    };
+    let start = offset(60.0, 50.0, 20.0);
+    let end = offset(60.0, 30.0, -10.0);
+    let n = (duration_s * rate).round() as usize;
+    let mut root = Vec::with_capacity(n);
+    let mut part = Vec::with_capacity(n);
+    let mut angles = Vec::with_capacity(n);
+    for f in 0..n {
+        let u = f as f64 / n as f64;
+        let lift = Translation3::from(Vec3::z() * LIFT_MM * lifted(u));
+        let r = if u < 0.22 {
+            start.lerp_slerp(&grasp_root, ramp(u, 0.0, 0.22))
+        } else if u < 0.86 {
+            lift * grasp_root
+        } else {
+            grasp_root.lerp_slerp(&end, ramp(u, 0.86, 1.0))
+        };
+        root.push(r);
+        part.push(lift * part_pose);
+        let c = closure(u);
+        angles.push(closed.iter().map(|a| a.map(|x| x * c)).collect::<Vec<_>>());
+    }
+
+    // The markers, frame by frame.
+    let defs = inp.markers;
+    let part_markers: Vec<(String, Point)> = {
+        let mut v: Vec<(String, Point)> = scene
+            .part_markers
+            .iter()
+            .map(|(k, p)| (k.clone(), *p))
+            .collect();
+        v.sort_by_key(|(k, _)| k[5..].parse::<u32>().unwrap_or(u32::MAX));
+        v
+    };
+    let mut labels: Vec<String> = defs.iter().map(|d| d.name.clone()).collect();
+    labels.extend(part_markers.iter().map(|(k, _)| k.clone()));
+    let mut noise = rng.fork("noise");
+    let mut positions: Vec<Vec<Option<Point>>> = vec![Vec::with_capacity(n); labels.len()];
+    let mut joints: BTreeMap<String, JointTrack> = Joint::ALL
+        .iter()
+        .map(|j| {
+            (
+                j.name().to_string(),
+                JointTrack {
+                    centre: Vec::with_capacity(n),
+                    angles_deg: Vec::with_capacity(n),
+                },
+            )
+        })
+        .collect();
+    for f in 0..n {
+        let mut pose = Pose::zero();
+        for (j, a) in Joint::ALL.iter().zip(&angles[f]) {
+            pose = pose.with_deg(*j, *a);
+        }
+        pose.root = root[f];
+        let tf = link_transforms(sk, &pose);
+        let posed = posed_skeleton(sk, &tf);
+        for j in Joint::ALL {
+            let t = joints.get_mut(j.name()).expect("every joint");
+            t.centre.push(posed.centre(j).coords.into());
+            t.angles_deg.push(angles[f][j.index()]);
+        }
+        for (m, d) in defs.iter().enumerate() {
+            let p = tf[d.link.index()] * d.displaced(&angles[f]) + noise.gauss3(err.noise_mm);
+            positions[m].push(Some(p));
+        }
+        for (k, (_, p)) in part_markers.iter().enumerate() {
+            positions[defs.len() + k].push(Some(part[f] * p + noise.gauss3(err.noise_mm)));
+        }
+    }
+
+    // Gaps: each marker starts a gap of 0.05-0.3 s at a visible frame with the probability that
+    // hides its current fraction of frames; a digit's fraction grows with the closure. The first
+    // 0.1 s stays visible so that a tracker can start.
+    let mut gap_rng = rng.fork("gaps");
+    let mut visible = Vec::with_capacity(labels.len());
+    for (m, label) in labels.iter().enumerate() {
+        let growth = if m >= defs.len() {
+            0.5
+        } else if matches!(defs[m].link, Link::Palm | Link::Arm) {
+            0.0
+        } else {
+            1.0
+        };
+        let mut vis = vec![true; n];
+        let mean_len = 0.175 * rate;
+        let mut f = (0.1 * rate).ceil() as usize;
+        while f < n {
+            let frac = gerr.gap_open
+                + (gerr.gap_closed - gerr.gap_open) * growth * closure(f as f64 / n as f64);
+            if frac > 0.0 && gap_rng.uniform() < frac / mean_len {
+                let len = (gap_rng.range(0.05, 0.3) * rate).round().max(1.0) as usize;
+                for v in vis.iter_mut().skip(f).take(len) {
+                    *v = false;
+                }
+                f += len;
+            } else {
+                f += 1;
+            }
+        }
+        debug_assert_eq!(label, &labels[m]);
+        visible.push(vis);
+    }
+    for (track, vis) in positions.iter_mut().zip(&visible) {
+        for (p, v) in track.iter_mut().zip(vis) {
+            if !v {
+                *p = None;
+            }
+        }
+    }
+
+    // Swaps: the same marker of two neighbouring fingers (closed fingers lie side by side),
+    // exchanged for 3-12 frames in the close, hold or lift phases.
+    let mut swap_rng = rng.fork("swaps");
+    let mut label_swaps = Vec::new();
+    let kinds = ["PIP", "DIP", "NAIL"];
+    let pairs = [("I", "M"), ("M", "R"), ("R", "L")];
+    let index_of = |s: &str| labels.iter().position(|l| l == s);
+    let mut tries = 0;
+    while label_swaps.len() < gerr.swaps && tries < 100 {
+        tries += 1;
+        let kind = kinds[swap_rng.below(kinds.len())];
+        let (a, b) = pairs[swap_rng.below(pairs.len())];
+        let (na, nb) = (format!("{a}_{kind}"), format!("{b}_{kind}"));
+        let (Some(ia), Some(ib)) = (index_of(&na), index_of(&nb)) else {
+            continue;
+        };
+        let len = 3 + swap_rng.below(10);
+        let lo = (0.25 * n as f64) as usize;
+        let hi = ((0.75 * n as f64) as usize).saturating_sub(len);
+        if hi <= lo {
+            break;
+        }
+        let first = lo + swap_rng.below(hi - lo);
+        let last = first + len - 1;
+        let clash = label_swaps.iter().any(|s: &LabelSwap| {
+            s.markers.iter().any(|m| *m == na || *m == nb) && first <= s.last && s.first <= last
+        });
+        if clash {
+            continue;
+        }
+        // The two tracks exchange their samples over the swap's frames.
+        let (lo, hi) = (ia.min(ib), ia.max(ib));
+        let (head, tail) = positions.split_at_mut(hi);
+        head[lo][first..=last].swap_with_slice(&mut tail[0][first..=last]);
+        label_swaps.push(LabelSwap {
+            markers: [na, nb],
+            first,
+            last,
+        });
+    }
+
+    let frame_of = |u: f64| ((u * n as f64).round() as usize).min(n);
+    let phases = PHASES
+        .iter()
+        .map(|&(name, a, b)| Phase {
+            name: name.to_string(),
+            first: frame_of(a),
+            last: frame_of(b).saturating_sub(1),
+        })
+        .collect();
+    let mut marker_links: BTreeMap<String, String> = defs
+        .iter()
+        .map(|d| (d.name.clone(), d.link.name().to_string()))
+        .collect();
+    for (k, _) in &part_markers {
+        marker_links.insert(k.clone(), "PART".into());
+    }
+    let truth = MotionTruth {
+        units: "mm".into(),
+        frame: "lab".into(),
+        rate,
+        frames: n,
+        joints,
+        part: PartTrack {
+            scene: format!("scenes/{}", task.scene_file),
+            position: part.iter().map(|p| p.translation.vector.into()).collect(),
+            rotation: part
+                .iter()
+                .map(|p| {
+                    let m = p.rotation.to_rotation_matrix().into_inner();
+                    [0, 1, 2].map(|r| [m[(r, 0)], m[(r, 1)], m[(r, 2)]])
+                })
+                .collect(),
+            markers: part_markers
+                .iter()
+                .map(|(k, p)| (k.clone(), p.coords.into()))
+                .collect(),
+        },
+        phases,
+        grasp_deg: Joint::ALL
+            .iter()
+            .map(|j| (j.name().to_string(), closed[j.index()]))
+            .collect(),
+        grasp_clearance_mm,
+        marker_links,
+        label_swaps,
+    };
+    let trajectories =
+        Trajectories::new(rate, labels, positions, format!("trials/{}.c3d", task.name))?;
+    Ok(GraspTrial {
+        name: task.name.to_string(),
+        trajectories,
+        truth,
+        markers: defs,
+        root,
+        angles,
+        visible,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::geometry::absolute_orientation;
+    use crate::synth::{simulate, simulate_with, write_subject, Preset, SynthOptions};
+    use crate::synth::{SyntheticSubject, FRAME_RATE};
+    use std::sync::OnceLock;
+
+    fn opts(seed: u64, preset: Preset) -> SynthOptions {
+        SynthOptions {
+            duration_s: Some(2.0),
+            voxel_mm: 2.0,
+            motion_s: Some(3.0),
+            ..SynthOptions::new(seed, preset)
+        }
+    }
+
+    /// No error at all: no noise, no skin slide, no gaps, no swaps.
+    fn clean() -> &'static SyntheticSubject {
+        static S: OnceLock<SyntheticSubject> = OnceLock::new();
+        S.get_or_init(|| simulate(&opts(41, Preset::Clean)).unwrap())
+    }
+
+    fn typical() -> &'static SyntheticSubject {
+        static S: OnceLock<SyntheticSubject> = OnceLock::new();
+        S.get_or_init(|| simulate(&opts(42, Preset::Typical)).unwrap())
+    }
+
+    fn p(a: &[f64; 3]) -> Point {
+        Point::new(a[0], a[1], a[2])
+    }
+
+    fn part_pose(t: &MotionTruth, f: usize) -> Isometry3<f64> {
+        let r = t.part.rotation[f];
+        let m = Matrix3::from_fn(|i, j| r[i][j]);
+        Isometry3::from_parts(
+            Translation3::from(p(&t.part.position[f]).coords),
+            UnitQuaternion::from_rotation_matrix(&Rotation3::from_matrix_unchecked(m)),
+        )
+    }
+
+    /// The truth's centres against closed forms of the joints' rotations: the palm's joints
+    /// move rigidly with the forearm (the wrist does not move in the grasp), every bone keeps
+    /// its length, and the angle between a finger's proximal and middle bones is the
+    /// reference angle turned by the PIP's flexion about the PIP's axis (Rodrigues), whatever
+    /// the MCP does.
+    #[test]
+    fn truth_centres_follow_the_joint_rotations_in_closed_form() {
+        let s = clean();
+        let m = &s.motions["grasp_bottle"];
+        let t = &m.truth;
+        assert_eq!((t.rate, t.frames), (FRAME_RATE, 300));
+        assert_eq!(t.joints.len(), s.truth.joints.len());
+        let reference = |j: Joint| p(&s.truth.joints[j.name()].centre);
+        let at = |j: Joint, f: usize| p(&t.joints[j.name()].centre[f]);
+        for f in (0..t.frames).step_by(7) {
+            let root = m.root[f];
+            for j in [
+                Joint::Wrist,
+                Joint::TCmc,
+                Joint::IMcp,
+                Joint::MMcp,
+                Joint::LMcp,
+            ] {
+                assert!((root * reference(j) - at(j, f)).norm() < 1e-9, "{j} {f}");
+            }
+            for fi in &Finger::ALL[1..] {
+                let [mcp, pip, dip] = fi.joints();
+                for (a, b) in [(mcp, pip), (pip, dip)] {
+                    let l0 = (reference(b) - reference(a)).norm();
+                    assert!(((at(b, f) - at(a, f)).norm() - l0).abs() < 1e-9);
+                }
+                let axis = s.truth.joints[pip.name()]
+                    .axis
+                    .map(|a| Vec3::new(a[0], a[1], a[2]));
+                let axis = axis.expect("a PIP has an axis");
+                let (u0, v0) = (
+                    reference(pip) - reference(mcp),
+                    reference(dip) - reference(pip),
+                );
+                let th = t.joints[pip.name()].angles_deg[f][0].to_radians();
+                let v = v0 * th.cos()
+                    + axis.cross(&v0) * th.sin()
+                    + axis * axis.dot(&v0) * (1.0 - th.cos());
+                let (u1, v1) = (at(pip, f) - at(mcp, f), at(dip, f) - at(pip, f));
+                let want = u0.normalize().dot(&v.normalize());
+                let got = u1.normalize().dot(&v1.normalize());
+                assert!(
+                    (want - got).abs() < 1e-9,
+                    "{pip} frame {f}: {want} vs {got}"
+                );
+            }
+        }
+        // The fingers really close: the PIPs flex in the hold.
+        let hold = &t.phases[2];
+        assert_eq!(hold.name, "hold");
+        for fi in &Finger::ALL[1..] {
+            let a = t.joints[fi.joints()[1].name()].angles_deg[hold.first][0];
+            assert!(a > 5.0, "{fi:?} PIP {a}");
+        }
+    }
+
+    /// Without noise or skin slide every marker keeps its place on its link: its distances to
+    /// the true centres riding that link stay constant, and the palm's markers move with the
+    /// palm's joint centres as one rigid body.
+    #[test]
+    fn clean_markers_ride_their_links() {
+        let s = clean();
+        let m = &s.motions["grasp_bottle"];
+        let (tr, t) = (&m.trajectories, &m.truth);
+        assert!(t.label_swaps.is_empty());
+        let at = |j: Joint, f: usize| p(&t.joints[j.name()].centre[f]);
+        let palm_joints = [
+            Joint::TCmc,
+            Joint::IMcp,
+            Joint::MMcp,
+            Joint::RMcp,
+            Joint::LMcp,
+        ];
+        for (k, label) in tr.labels.iter().enumerate() {
+            let link = &t.marker_links[label];
+            assert!(
+                tr.positions[k].iter().all(Option::is_some),
+                "{label} has gaps"
+            );
+            let Some(link) = Link::from_name(link) else {
+                continue;
+            };
+            // The centres on the link: the joint it turns about and the joints at its far end.
+            let mut on: Vec<Joint> = Joint::ALL
+                .iter()
+                .filter(|j| j.child_link() == link || j.parent_link() == link)
+                .copied()
+                .collect();
+            if link == Link::Arm {
+                continue; // only the wrist's centre rides the forearm: see the palm test
+            }
+            if link == Link::Palm {
+                on = palm_joints.to_vec();
+            }
+            let d0: Vec<f64> = on
+                .iter()
+                .map(|&j| (tr.get(label, 0).unwrap() - at(j, 0)).norm())
+                .collect();
+            for f in (0..t.frames).step_by(5) {
+                let x = tr.get(label, f).unwrap();
+                for (j, d) in on.iter().zip(&d0) {
+                    assert!(((x - at(*j, f)).norm() - d).abs() < 1e-6, "{label} {j} {f}");
+                }
+                if link == Link::Palm {
+                    let from: Vec<Point> = palm_joints.iter().map(|&j| at(j, 0)).collect();
+                    let to: Vec<Point> = palm_joints.iter().map(|&j| at(j, f)).collect();
+                    let reg = absolute_orientation(&from, &to, None, false).unwrap();
+                    let moved = reg.apply(&tr.get(label, 0).unwrap());
+                    assert!((moved - x).norm() < 1e-6, "{label} frame {f}");
+                }
+            }
+        }
+    }
+
+    /// Horn's registration of the scene's part markers onto the captured ones recovers the
+    /// part's true pose to the noise's level, through the lift.
+    #[test]
+    fn part_markers_give_the_part_pose() {
+        let s = typical();
+        let m = &s.motions["grasp_bottle"];
+        let (tr, t) = (&m.trajectories, &m.truth);
+        let names: Vec<&String> = t.part.markers.keys().collect();
+        assert!(names.len() >= 3);
+        let (mut errors, mut n, mut lifted_mm) = (Vec::new(), 0, 0.0f64);
+        for f in 0..t.frames {
+            let (mut from, mut to) = (Vec::new(), Vec::new());
+            for k in &names {
+                if let Some(x) = tr.get(k, f) {
+                    from.push(p(&t.part.markers[*k]));
+                    to.push(x);
+                }
+            }
+            if from.len() < 3 {
+                continue;
+            }
+            n += 1;
+            let reg = absolute_orientation(&from, &to, None, false).unwrap();
+            let truth = part_pose(t, f);
+            lifted_mm = lifted_mm.max(truth.translation.vector.z - t.part.position[0][2]);
+            // Over the part's body: its base centre and a point on its side.
+            for q in [Point::new(0.0, 0.0, 0.0), Point::new(30.0, 0.0, 100.0)] {
+                errors.push((reg.apply(&q) - truth * q).norm());
+            }
+        }
+        assert!(n > t.frames / 2, "{n}");
+        // 0.2 mm noise on 3-4 markers some 40 mm apart, read up to 200 mm away from them.
+        errors.sort_by(f64::total_cmp);
+        let (median, worst) = (errors[errors.len() / 2], errors[errors.len() - 1]);
+        assert!(median < 1.0 && worst < 6.0, "{median} {worst}");
+        assert!((lifted_mm - LIFT_MM).abs() < 1e-6, "{lifted_mm}");
+    }
+
+    /// In the hold the digits touch the part without reaching into it: every proximal and
+    /// middle bone, as a capsule of half the digit's true thickness between the truth's
+    /// centres, is clear of the part's surface but for a millimetre, and the middle phalanges
+    /// of at least three fingers lie within 3 mm of it.
+    #[test]
+    fn the_hand_holds_the_part_without_reaching_into_it() {
+        for s in [clean(), typical()] {
+            let t = &s.motions["grasp_bottle"].truth;
+            let hold = &t.phases[2];
+            for f in [hold.first, (hold.first + hold.last) / 2, hold.last] {
+                let inv = part_pose(t, f).inverse();
+                let mut near = 0;
+                for fi in &Finger::ALL[1..] {
+                    let n = fi.number();
+                    let r = s.truth.dimensions[&format!("finger{n}_thickness_proximal")] / 2.0;
+                    let [mcp, pip, dip] = fi.joints();
+                    let mut mid_clear = f64::INFINITY;
+                    for (a, b) in [(mcp, pip), (pip, dip)] {
+                        let (a, b) = (
+                            p(&t.joints[a.name()].centre[f]),
+                            p(&t.joints[b.name()].centre[f]),
+                        );
+                        for k in 0..=10 {
+                            let x = a + (b - a) * (k as f64 / 10.0);
+                            let c = Part::Bottle.sdf(&(inv * x)) - r;
+                            assert!(c > -1.0, "{fi:?} frame {f}: {c} mm into the part");
+                            if b == p(&t.joints[dip.name()].centre[f]) {
+                                mid_clear = mid_clear.min(c);
+                            }
+                        }
+                    }
+                    near += usize::from(mid_clear < 3.0);
+                }
+                assert!(near >= 3, "frame {f}: {near} fingers near the part");
+            }
+        }
+    }
+
+    /// Gaps grow as the hand closes; the swaps exchange exactly the named tracks over the named
+    /// frames; the clean model has neither.
+    #[test]
+    fn gaps_grow_with_closure_and_swaps_exchange_tracks() {
+        let s = typical();
+        let m = &s.motions["grasp_bottle"];
+        let t = &m.truth;
+        let hidden = |first: usize, last: usize| {
+            let mut h = (0usize, 0usize);
+            for (k, label) in m.trajectories.labels.iter().enumerate() {
+                let link = &t.marker_links[label];
+                if matches!(link.as_str(), "PALM" | "ARM" | "PART") {
+                    continue;
+                }
+                for f in first..=last {
+                    h.0 += usize::from(!m.visible[k][f]);
+                    h.1 += 1;
+                }
+            }
+            h.0 as f64 / h.1 as f64
+        };
+        let (reach, held) = (
+            hidden(t.phases[0].first, t.phases[0].last),
+            hidden(t.phases[2].first, t.phases[3].last),
+        );
+        assert!(held > 2.0 * reach && held > 0.08, "{reach} {held}");
+        assert_eq!(t.label_swaps.len(), 2);
+
+        // The same trial without swaps: equal but for the swapped stretches, where the two
+        // tracks are exchanged.
+        let tasks = &GRASP_TASKS[0];
+        let err = Preset::Typical.error_model();
+        let mut gerr = GraspErrors::from_model(&err);
+        let inputs = || GraspInputs {
+            skeleton: &s.true_skeleton,
+            skin: &s.true_skin,
+            dimensions: &s.truth.dimensions,
+            markers: m.markers.clone(),
+        };
+        let rng = Rng::new(42).fork("motion-grasp_bottle");
+        let again = simulate_grasp(tasks, inputs(), 3.0, FRAME_RATE, &err, &gerr, &rng).unwrap();
+        assert_eq!(again.trajectories, m.trajectories, "not deterministic");
+        gerr.swaps = 0;
+        let plain = simulate_grasp(tasks, inputs(), 3.0, FRAME_RATE, &err, &gerr, &rng).unwrap();
+        let (a, b) = (&m.trajectories, &plain.trajectories);
+        let swapped = |label: &str, f: usize| {
+            t.label_swaps.iter().find_map(|s| {
+                let i = s.markers.iter().position(|x| x == label)?;
+                (s.first..=s.last)
+                    .contains(&f)
+                    .then(|| s.markers[1 - i].clone())
+            })
+        };
+        let mut exchanged = 0;
+        for label in &a.labels {
+            for f in 0..a.n_frames() {
+                match swapped(label, f) {
+                    Some(other) => {
+                        assert_eq!(a.get(label, f), b.get(&other, f), "{label} {f}");
+                        exchanged += 1;
+                    }
+                    None => assert_eq!(a.get(label, f), b.get(label, f), "{label} {f}"),
+                }
+            }
+        }
+        assert!(exchanged >= 2 * 2 * 3, "{exchanged}");
+        assert_eq!(
+            GraspErrors::from_model(&Preset::Clean.error_model()).swaps,
+            0
+        );
+    }
+
+    /// Through the files: `[motions]` names the trial, the C3D reads back to the float's
+    /// precision with its gaps, the truth file reads back equal; without `motion_s` nothing of
+    /// it is written and the calibration trials are the same.
+    #[test]
+    fn the_motion_round_trips_through_the_folder() {
+        let s = typical();
+        let dir = tempfile::tempdir().unwrap();
+        write_subject(dir.path(), s, true).unwrap();
+        let subj = crate::mocap::subject::Subject::load(dir.path()).unwrap();
+        let read = subj.load_motion("grasp_bottle").unwrap();
+        let mem = &s.motions["grasp_bottle"].trajectories;
+        assert_eq!(read.n_frames(), mem.n_frames());
+        assert_eq!(read.frame_rate, FRAME_RATE);
+        for label in &mem.labels {
+            for f in 0..mem.n_frames() {
+                match (mem.get(label, f), read.get(label, f)) {
+                    (Some(x), Some(y)) => assert!((x - y).norm() < 1e-3, "{label} {f}"),
+                    (x, y) => assert_eq!(x.is_some(), y.is_some(), "{label} {f}"),
+                }
+            }
+        }
+        let text = std::fs::read_to_string(dir.path().join("truth_motion/grasp_bottle.json"));
+        let truth: MotionTruth = serde_json::from_str(&text.unwrap()).unwrap();
+        let want = &s.motions["grasp_bottle"].truth;
+        assert_eq!((truth.rate, truth.frames), (want.rate, want.frames));
+        assert_eq!(
+            (&truth.phases, &truth.label_swaps),
+            (&want.phases, &want.label_swaps)
+        );
+        for (j, track) in &want.joints {
+            for (a, b) in track.centre.iter().zip(&truth.joints[j].centre) {
+                assert!((p(a) - p(b)).norm() < 1e-9, "{j}");
+            }
+        }
+
+        let without = simulate_with(
+            &SynthOptions {
+                motion_s: None,
+                ..s.truth.synth.clone()
+            },
+            &Preset::Typical.error_model(),
+        )
+        .unwrap();
+        assert!(without.motions.is_empty() && without.subject.motions.is_empty());
+        assert_eq!(without.trials, s.trials);
+        let json = serde_json::to_string(&without.truth).unwrap();
+        assert!(!json.contains("motion_s"));
+    }
+
+    #[test]
+    fn bad_lengths_are_refused() {
+        let e = simulate(&SynthOptions {
+            motion_s: Some(0.2),
+            ..opts(1, Preset::Clean)
+        })
+        .unwrap_err()
+        .to_string();
+        assert!(
+            e.contains("motion trial length") && !e.contains('\n'),
+            "{e}"
+        );
+    }
+}
