@@ -202,6 +202,8 @@ impl<'m> AabbTree<'m> {
     /// [`Self::closest_point`] when it is within `max_dist` of `p`, else `None`; boxes further
     /// than `max_dist` are never opened, so a query far from the mesh costs a few box tests.
     pub fn closest_point_within(&self, p: &Point, max_dist: f64) -> Option<Closest> {
+        // One deref of the borrowed-or-owned mesh, not one per face.
+        let mesh: &TriMesh = &self.mesh;
         if self.nodes.is_empty()
             || !p.coords.iter().all(|c| c.is_finite())
             || max_dist.is_nan()
@@ -222,7 +224,7 @@ impl<'m> AabbTree<'m> {
                 let s = node.index as usize;
                 for &f in &self.order[s..s + node.count as usize] {
                     let f = f as usize;
-                    let [a, b, c] = self.mesh.corners(f);
+                    let [a, b, c] = mesh.corners(f);
                     let (q, bary, feat) = closest_point_triangle(p, &a, &b, &c);
                     let d2 = (q - p).norm_squared();
                     let better = match best {
@@ -282,6 +284,8 @@ impl<'m> AabbTree<'m> {
     /// Every face within `radius` of `p`, as `(face, distance)` sorted by face index, appended to
     /// `out` (cleared first). A range query: boxes further than `radius` are pruned.
     pub fn faces_within(&self, p: &Point, radius: f64, out: &mut Vec<(usize, f64)>) {
+        // One deref of the borrowed-or-owned mesh, not one per face.
+        let mesh: &TriMesh = &self.mesh;
         out.clear();
         if self.nodes.is_empty()
             || !p.coords.iter().all(|c| c.is_finite())
@@ -301,7 +305,7 @@ impl<'m> AabbTree<'m> {
                 let s = node.index as usize;
                 for &f in &self.order[s..s + node.count as usize] {
                     let f = f as usize;
-                    let [a, b, c] = self.mesh.corners(f);
+                    let [a, b, c] = mesh.corners(f);
                     let (q, ..) = closest_point_triangle(p, &a, &b, &c);
                     let d2 = (q - p).norm_squared();
                     if d2 <= r2 {
@@ -326,6 +330,8 @@ impl<'m> AabbTree<'m> {
         out: &mut Vec<(usize, f64)>,
     ) -> Option<Closest> {
         out.clear();
+        // One deref of the borrowed-or-owned mesh, not one per face.
+        let mesh: &TriMesh = &self.mesh;
         if self.nodes.is_empty()
             || !p.coords.iter().all(|c| c.is_finite())
             || margin.is_nan()
@@ -346,7 +352,7 @@ impl<'m> AabbTree<'m> {
                 let s = node.index as usize;
                 for &f in &self.order[s..s + node.count as usize] {
                     let f = f as usize;
-                    let [a, b, c] = self.mesh.corners(f);
+                    let [a, b, c] = mesh.corners(f);
                     let (q, bary, feat) = closest_point_triangle(p, &a, &b, &c);
                     let d2 = (q - p).norm_squared();
                     if d2 > bound2 {
@@ -399,6 +405,8 @@ impl<'m> AabbTree<'m> {
     /// (Möller & Trumbore 1997 per face, slab test per box: Kay & Kajiya 1986); faces are hit
     /// from either side. `dir` need not be unit; `t` is in units of `dir`.
     pub fn ray_cast(&self, origin: &Point, dir: &Vec3, t_min: f64, t_max: f64) -> Option<RayHit> {
+        // One deref of the borrowed-or-owned mesh, not one per face.
+        let mesh: &TriMesh = &self.mesh;
         if self.nodes.is_empty() || dir.norm_squared() == 0.0 {
             return None;
         }
@@ -415,7 +423,7 @@ impl<'m> AabbTree<'m> {
                 let s = node.index as usize;
                 for &f in &self.order[s..s + node.count as usize] {
                     let f = f as usize;
-                    let [a, b, c] = self.mesh.corners(f);
+                    let [a, b, c] = mesh.corners(f);
                     if let Some(t) = ray_triangle(origin, dir, &a, &b, &c) {
                         let better = t > t_min
                             && (t < t_best || (t == t_best && best.is_some_and(|(_, bf)| f < bf)));

@@ -7,6 +7,7 @@ use super::scene::GraspType;
 use crate::anatomy::{Finger, Joint, Link};
 use crate::geometry::{Point, Vec3};
 use crate::skeleton::limits::joint_limits_deg;
+use crate::skeleton::Skeleton;
 use nalgebra::{Isometry3, Rotation3, Translation3, UnitQuaternion};
 
 /// Preshape and closed posture of a grasp type, radians, and which joints close.
@@ -152,7 +153,23 @@ pub fn grasp_plan(kind: GraspType) -> GraspPlan {
 /// The hand's grasp frame in the reference posture: origin on the palmar skin below the palm's
 /// centre, z out of the palm (palmar), y from the wrist toward the middle finger, x = y × z.
 pub fn grasp_frame(hand: &dyn PosableHand) -> Isometry3<f64> {
-    let sk = hand.skeleton();
+    let links = hand.vertex_link();
+    let palm = hand
+        .rest_mesh()
+        .vertices
+        .iter()
+        .zip(links)
+        .filter(|(_, &l)| l == Link::Palm.index())
+        .map(|(v, _)| v);
+    palm_grasp_frame(hand.skeleton(), palm)
+}
+
+/// [`grasp_frame`] of the skeleton `sk` whose palm skin is `palm_skin`: the origin goes to the
+/// furthest of these points along the palmar direction within 15 mm of the palm's centre line.
+pub(crate) fn palm_grasp_frame<'a>(
+    sk: &Skeleton,
+    palm_skin: impl Iterator<Item = &'a Point>,
+) -> Isometry3<f64> {
     let palmar = -sk.joint(Joint::Wrist).y();
     let mcp = [Joint::IMcp, Joint::MMcp, Joint::RMcp, Joint::LMcp];
     let centre = Point::from(
@@ -163,17 +180,12 @@ pub fn grasp_frame(hand: &dyn PosableHand) -> Isometry3<f64> {
     let along = sk.centre(Joint::MMcp) - sk.centre(Joint::Wrist);
     let y = (along - palmar * palmar.dot(&along)).normalize();
     let x = y.cross(&palmar);
-    // The palm's skin: the furthest palm vertex along the palmar direction near the centre.
-    let mesh = hand.rest_mesh();
-    let links = hand.vertex_link();
     let mut depth = 0.0f64;
-    for (v, &l) in mesh.vertices.iter().zip(links) {
-        if l == Link::Palm.index() {
-            let r = v - centre;
-            let lateral = r - palmar * palmar.dot(&r);
-            if lateral.norm() < 15.0 {
-                depth = depth.max(palmar.dot(&r));
-            }
+    for v in palm_skin {
+        let r = v - centre;
+        let lateral = r - palmar * palmar.dot(&r);
+        if lateral.norm() < 15.0 {
+            depth = depth.max(palmar.dot(&r));
         }
     }
     let rot = Rotation3::from_basis_unchecked(&[x, y, palmar]);

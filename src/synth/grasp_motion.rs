@@ -440,32 +440,10 @@ impl Closer<'_> {
 }
 
 /// The grasp frame of a hand (as [`crate::grasp::plan::grasp_frame`], from its skeleton and skin
-/// alone): origin on the palm's skin midway between the wrist and the MCPs, z out of the palm,
-/// y toward the fingers.
+/// alone: the true skin carries no link labels, so every vertex near the palm's centre line
+/// counts).
 fn grasp_frame(sk: &Skeleton, skin: &TriMesh) -> Isometry3<f64> {
-    let palmar = -sk.joint(Joint::Wrist).y();
-    let mcp = [Joint::IMcp, Joint::MMcp, Joint::RMcp, Joint::LMcp];
-    let centre = Point::from(
-        (mcp.iter().map(|&j| sk.centre(j).coords).sum::<Vec3>() / 4.0
-            + sk.centre(Joint::Wrist).coords)
-            / 2.0,
-    );
-    let along = sk.centre(Joint::MMcp) - sk.centre(Joint::Wrist);
-    let y = (along - palmar * palmar.dot(&along)).normalize();
-    let x = y.cross(&palmar);
-    let mut depth = 0.0f64;
-    for v in &skin.vertices {
-        let r = v - centre;
-        let lateral = r - palmar * palmar.dot(&r);
-        if lateral.norm() < 15.0 {
-            depth = depth.max(palmar.dot(&r));
-        }
-    }
-    let rot = Rotation3::from_basis_unchecked(&[x, y, palmar]);
-    Isometry3::from_parts(
-        Translation3::from((centre + palmar * depth).coords),
-        UnitQuaternion::from_rotation_matrix(&rot),
-    )
+    crate::grasp::plan::palm_grasp_frame(sk, skin.vertices.iter())
 }
 
 /// The scene's approach for `side`: scenes give it for a right hand; a left hand takes its
