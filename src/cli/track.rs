@@ -5,7 +5,6 @@
 use super::Voice;
 use crate::error::{Error, Result};
 use crate::io::output_paths::{check_output_dir, Inputs};
-use crate::mocap::motions::{load_motion, motion_paths};
 use crate::mocap::subject::{Subject, TrialKind};
 use crate::track::{load_link_model, track_trial, IkOptions, PartSetup};
 use std::path::{Path, PathBuf};
@@ -57,11 +56,7 @@ pub(crate) fn track_job(
     let mut inputs = Inputs::files(
         std::iter::once(subject.toml_path())
             .chain(subject.trials.values().map(|p| subject.dir.join(p)))
-            .chain(
-                motion_paths(&subject)?
-                    .values()
-                    .map(|p| subject.dir.join(p)),
-            )
+            .chain(subject.motions.values().map(|p| subject.dir.join(p)))
             .chain(scene.map(Path::to_path_buf)),
     )
     .with_model(model_dir);
@@ -82,7 +77,7 @@ pub(crate) fn track_job(
         ));
     }
     let static_trial = subject.load_trial(TrialKind::Reference)?;
-    let trial = load_motion(&subject, motion)?;
+    let trial = subject.load_motion(motion)?;
     let part = match scene {
         None => None,
         Some(p) => {

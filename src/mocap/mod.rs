@@ -2,7 +2,6 @@
 //! marker trajectories every later stage shares.
 
 pub mod c3d;
-pub mod motions;
 pub mod plausibility;
 pub mod subject;
 pub mod trajectories;

@@ -152,6 +152,10 @@ struct Prior {
     last: HandState,
     /// Frames since it.
     frames_since: usize,
+    /// The joints it held.
+    held: Vec<Joint>,
+    /// Per marker: rejected as an outlier and not accepted since (unseen frames keep it so).
+    suspect: Vec<bool>,
 }
 
 impl<'a> Solver<'a> {
@@ -196,14 +200,32 @@ impl<'a> Solver<'a> {
             match &sol.state {
                 Some(s) => {
                     // Velocity only from two consecutive solved frames.
-                    let predicted = match (&prev_solved, &prior) {
+                    let mut predicted = match (&prev_solved, &prior) {
                         (Some(p), Some(pr)) if pr.frames_since == 1 => extrapolate(p, s),
                         _ => s.clone(),
                     };
+                    // A joint held in either frame has no velocity to carry on: its angles
+                    // jumped from stale ones to seen ones (or did not move at all).
+                    let held_before = prior.as_ref().map_or(&[][..], |p| &p.held[..]);
+                    for j in sol.held.iter().chain(held_before) {
+                        predicted.angles[j.index()] = s.angles[j.index()];
+                    }
+                    let mut suspect = prior
+                        .as_ref()
+                        .map_or_else(|| vec![false; frame.len()], |p| p.suspect.clone());
+                    for (i, sus) in suspect.iter_mut().enumerate() {
+                        if sol.rejected.contains(&i) {
+                            *sus = true;
+                        } else if sol.residual_mm[i].is_some() {
+                            *sus = false;
+                        }
+                    }
                     prior = Some(Prior {
                         predicted,
                         last: s.clone(),
                         frames_since: 1,
+                        held: sol.held.clone(),
+                        suspect,
                     });
                     prev_solved = Some(s.clone());
                 }
@@ -266,20 +288,29 @@ impl<'a> Solver<'a> {
             }
         };
         let mut held = Vec::new();
+        let mut fit = inlier.clone();
         for _round in 0..8 {
             held = self.held_joints(&inlier);
             let mut start = state.clone();
             for &j in &held {
                 start.angles[j.index()] = hold_from.angles[j.index()];
             }
-            let (s, it) = self.solve(start, obs, &inlier, &held, prior.map(|p| &p.predicted));
+            // A marker beyond a held joint sits where stale angles put it: in the fit it
+            // would pull the palm and the joints that are solved.
+            let on_held = self.on_held(&held);
+            fit = (0..n).map(|i| inlier[i] && !on_held[i]).collect();
+            let (s, it) = self.solve(start, obs, &fit, &held, prior.map(|p| &p.predicted));
             iterations += it;
             state = s;
-            // Let in every seen marker that fits; drop the worst that does not.
+            // Let in every seen marker that fits; drop the worst that does not (markers on
+            // held links are judged neither way).
             let e = self.kin.evaluate(&state);
             let res = self.residuals(&e, obs);
             let mut changed = false;
             for i in 0..n {
+                if on_held[i] {
+                    continue;
+                }
                 if let Some(r) = res[i] {
                     if !inlier[i] && r <= self.opts.gate_mm {
                         inlier[i] = true;
@@ -288,8 +319,15 @@ impl<'a> Solver<'a> {
                 }
             }
             if !changed {
+                let (pred, suspect) = match prior {
+                    Some(p) => (Some(&p.predicted), &p.suspect[..]),
+                    None => (None, &[][..]),
+                };
+                changed = self.readmit(&mut inlier, &state, obs, pred, suspect);
+            }
+            if !changed {
                 let worst = (0..n)
-                    .filter(|&i| inlier[i])
+                    .filter(|&i| inlier[i] && !on_held[i])
                     .filter_map(|i| res[i].map(|r| (i, r)))
                     .filter(|&(_, r)| r > self.opts.gate_mm)
                     .max_by(|a, b| a.1.total_cmp(&b.1));
@@ -303,7 +341,7 @@ impl<'a> Solver<'a> {
         let residual_mm = self.residuals(&e, obs);
         let (mut ss, mut cnt) = (0.0, 0usize);
         for i in 0..n {
-            if inlier[i] {
+            if fit[i] {
                 if let Some(r) = residual_mm[i] {
                     ss += r * r;
                     cnt += 1;
@@ -331,6 +369,64 @@ impl<'a> Solver<'a> {
             held,
             iterations,
         }
+    }
+
+    /// Give a held digit (or the forearm) back the seen markers the jump gate kept out, if
+    /// together they fit it: after an occlusion the held angles predict nothing, so a marker
+    /// that comes back far from them may be right; a swapped label, though, cannot be fitted
+    /// together with the digit's other markers. A group is let in when, solved with it, each
+    /// of the digit's markers lies within `gate_mm` and their RMS within `huber_mm`. A marker
+    /// rejected as an outlier and not accepted since is not a candidate: with two markers on a
+    /// digit of five DOF even a swapped one fits. Returns whether any group was let in.
+    fn readmit(
+        &self,
+        inlier: &mut [bool],
+        state: &HandState,
+        obs: &[Option<Point>],
+        pred: Option<&HandState>,
+        suspect: &[bool],
+    ) -> bool {
+        let n = inlier.len();
+        let on_held = self.on_held(&self.held_joints(inlier));
+        let mut any = false;
+        // `None`: the forearm's markers (the palm's are never on a held link).
+        let groups = [None].into_iter().chain(Finger::ALL.map(Some));
+        for g in groups {
+            let member = |i: usize| on_held[i] && self.digit[i] == g;
+            let candidates: Vec<usize> = (0..n)
+                .filter(|&i| member(i) && !inlier[i] && obs[i].is_some())
+                .filter(|&i| !suspect.get(i).copied().unwrap_or(false))
+                .collect();
+            if candidates.is_empty() {
+                continue;
+            }
+            let mut trial = inlier.to_vec();
+            for &i in &candidates {
+                trial[i] = true;
+            }
+            let held = self.held_joints(&trial);
+            let still_held = self.on_held(&held);
+            let fit: Vec<bool> = (0..n).map(|i| trial[i] && !still_held[i]).collect();
+            if candidates.iter().all(|&i| still_held[i]) {
+                continue;
+            }
+            let (s, _) = self.solve(state.clone(), obs, &fit, &held, pred);
+            let res = self.residuals(&self.kin.evaluate(&s), obs);
+            // Every marker of the digit, not only the candidates: a swapped label fits only by
+            // pulling the digit off its other markers.
+            let group_res: Vec<f64> = (0..n)
+                .filter(|&i| fit[i] && self.digit[i] == g && self.att.markers[i].link != Link::Palm)
+                .filter_map(|i| res[i])
+                .collect();
+            let rms = (group_res.iter().map(|r| r * r).sum::<f64>()
+                / group_res.len().max(1) as f64)
+                .sqrt();
+            if group_res.iter().all(|&r| r <= self.opts.gate_mm) && rms <= self.opts.huber_mm {
+                inlier.copy_from_slice(&trial);
+                any = true;
+            }
+        }
+        any
     }
 
     fn palm_count(&self, use_: &[bool]) -> usize {
@@ -362,6 +458,9 @@ impl<'a> Solver<'a> {
         use_: &[bool],
     ) -> (HandState, usize) {
         let held = self.held_joints(use_);
+        let on_held = self.on_held(&held);
+        let fit: Vec<bool> = (0..use_.len()).map(|i| use_[i] && !on_held[i]).collect();
+        let use_ = &fit[..];
         let mut best: [(f64, [[f64; 3]; 3]); 5] = [(f64::INFINITY, [[0.0; 3]; 3]); 5];
         let mut palm = start.palm;
         let mut wrist = [0.0; 3];
@@ -438,6 +537,29 @@ impl<'a> Solver<'a> {
             }
         }
         held
+    }
+
+    /// Per marker: whether one of the `held` joints moves its link relative to the palm (the
+    /// solve's root: the wrist moves the forearm, a digit's joints its phalanges).
+    fn on_held(&self, held: &[Joint]) -> Vec<bool> {
+        self.att
+            .markers
+            .iter()
+            .map(|m| match m.link {
+                Link::Palm => false,
+                Link::Arm => held.contains(&Joint::Wrist),
+                l => {
+                    let mut j = l.joint();
+                    while let Some(jj) = j.filter(|&jj| jj != Joint::Wrist) {
+                        if held.contains(&jj) {
+                            return true;
+                        }
+                        j = jj.parent();
+                    }
+                    false
+                }
+            })
+            .collect()
     }
 
     /// Residual distances of every seen marker under `e`.
