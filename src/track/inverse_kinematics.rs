@@ -375,9 +375,10 @@ impl<'a> Solver<'a> {
     /// together they fit it: after an occlusion the held angles predict nothing, so a marker
     /// that comes back far from them may be right; a swapped label, though, cannot be fitted
     /// together with the digit's other markers. A group is let in when, solved with it, each
-    /// of the digit's markers lies within `gate_mm` and their RMS within `huber_mm`. A marker
-    /// rejected as an outlier and not accepted since is not a candidate: with two markers on a
-    /// digit of five DOF even a swapped one fits. Returns whether any group was let in.
+    /// of the digit's markers lies within `gate_mm` and their RMS within `huber_mm`. With two
+    /// markers on a digit of five DOF even a swapped label fits, so a marker rejected and not
+    /// accepted since (suspect) comes back only in a group of three or more markers on the
+    /// digit, where a swapped one cannot. Returns whether any group was let in.
     fn readmit(
         &self,
         inlier: &mut [bool],
@@ -393,16 +394,28 @@ impl<'a> Solver<'a> {
         let groups = [None].into_iter().chain(Finger::ALL.map(Some));
         for g in groups {
             let member = |i: usize| on_held[i] && self.digit[i] == g;
-            let candidates: Vec<usize> = (0..n)
+            let is_suspect = |i: usize| suspect.get(i).copied().unwrap_or(false);
+            let mut candidates: Vec<usize> = (0..n)
                 .filter(|&i| member(i) && !inlier[i] && obs[i].is_some())
-                .filter(|&i| !suspect.get(i).copied().unwrap_or(false))
                 .collect();
-            if candidates.is_empty() {
-                continue;
-            }
+            let on_digit = |t: &[bool]| {
+                (0..n)
+                    .filter(|&i| t[i] && self.digit[i] == g)
+                    .filter(|&i| self.att.markers[i].link != Link::Palm)
+                    .count()
+            };
             let mut trial = inlier.to_vec();
             for &i in &candidates {
                 trial[i] = true;
+            }
+            if candidates.iter().any(|&i| is_suspect(i)) && on_digit(&trial) < 3 {
+                candidates.retain(|&i| !is_suspect(i));
+                for i in 0..n {
+                    trial[i] = inlier[i] || candidates.contains(&i);
+                }
+            }
+            if candidates.is_empty() {
+                continue;
             }
             let held = self.held_joints(&trial);
             let still_held = self.on_held(&held);
