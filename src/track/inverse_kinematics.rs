@@ -170,10 +170,8 @@ impl<'a> Solver<'a> {
         let mut which = [(0usize, 0usize); MAX_PARAMS];
         let margin = opts.limit_margin_deg;
         for j in Joint::ALL {
-            let lim = joint_limits_deg(j);
-            for d in 0..3 {
+            for (d, [lo, hi]) in joint_limits_deg(j).into_iter().enumerate() {
                 if let Some(k) = kin.param[j.index()][d] {
-                    let [lo, hi] = lim[d];
                     limits[k] = Some(((lo - margin).to_radians(), (hi + margin).to_radians()));
                     which[k] = (j.index(), d);
                 }
@@ -674,9 +672,7 @@ impl<'a> Solver<'a> {
     ) -> (HandState, usize) {
         let np = self.kin.n_params;
         let mut free = [true; MAX_PARAMS];
-        for k in np..MAX_PARAMS {
-            free[k] = false;
-        }
+        free[np..].fill(false);
         for j in held {
             for d in 0..3 {
                 if let Some(k) = self.kin.param[j.index()][d] {

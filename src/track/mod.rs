@@ -6,7 +6,7 @@
 //!   analytic derivatives.
 //! * [`inverse_kinematics`]: the per-frame robust Levenberg-Marquardt fit.
 //! * [`part`]: the product's pose per frame from its markers.
-//! * [`motion_file`]: `motion.json`.
+//! * [`motion_file`]: the `motion.json` document.
 //! * [`fixture`]: marker sets and motion trials made from known angles, for tests and the
 //!   bench.
 //!
@@ -24,7 +24,7 @@ pub use attachment::{rides_on, AttachedMarker, Attachment};
 pub use inverse_kinematics::{observations, FrameSolution, IkOptions, Solver};
 pub use kinematics::{load_link_model, HandState, Kinematics};
 pub use motion_file::{ContactRecord, JointTrack, MotionFile, PartPose, PartTrack};
-pub use part::part_poses;
+pub use part::{part_poses, PartPoses};
 
 use crate::anatomy::{Joint, Link};
 use crate::error::{Error, Result};
@@ -49,7 +49,7 @@ pub struct Tracked {
     /// One per frame.
     pub frames: Vec<FrameSolution>,
     /// The part's pose per frame, when a part was given.
-    pub part: Option<(Vec<Option<Isometry3<f64>>>, Vec<Option<f64>>)>,
+    pub part: Option<PartPoses>,
     /// Frame rate, Hz.
     pub rate: f64,
     /// Warnings, each naming the trial and the markers, joints or frames.

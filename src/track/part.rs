@@ -8,13 +8,17 @@ use crate::mocap::trajectories::Trajectories;
 use nalgebra::Isometry3;
 use std::collections::BTreeMap;
 
+/// The part's pose per frame (`None` where too few of its markers are seen) and the RMS
+/// residual of its markers per frame (`None` without markers).
+pub type PartPoses = (Vec<Option<Isometry3<f64>>>, Vec<Option<f64>>);
+
 /// The part's pose (part frame -> lab) per frame, `None` where fewer than three of its
 /// markers are seen (or they are collinear), and the fit's RMS residual per frame, mm.
 pub fn part_poses(
     traj: &Trajectories,
     markers: &BTreeMap<String, Point>,
     placed: &Isometry3<f64>,
-) -> (Vec<Option<Isometry3<f64>>>, Vec<Option<f64>>) {
+) -> PartPoses {
     let n = traj.n_frames();
     if markers.is_empty() {
         return (vec![Some(*placed); n], vec![None; n]);

@@ -148,7 +148,7 @@ fn gaps_and_a_swapped_label_lose_no_frame() {
     let mut motion = motion_trial(&kin, &att, &truth, 100.0, 0.0, 3);
     let mut rng = crate::rng::Rng::new(11);
     // Gaps: about a fifth of all samples, keeping three palm markers and two per digit.
-    for f in 0..motion.n_frames() {
+    for (f, state) in truth.iter().enumerate() {
         for m in &att.markers {
             if rng.uniform() < 0.2 {
                 drop_sample(&mut motion, &m.name, f);
@@ -164,7 +164,7 @@ fn gaps_and_a_swapped_label_lose_no_frame() {
         if palm.iter().filter(|n| seen(&motion, n)).count() < 3 {
             for n in &palm[..3] {
                 let i = motion.index_of(n).unwrap();
-                let p = kin.evaluate(&truth[f]).links[Link::Palm.index()]
+                let p = kin.evaluate(state).links[Link::Palm.index()]
                     * att.markers[att.index_of(n).unwrap()].reference;
                 motion.positions[i][f] = Some(p);
             }
@@ -180,7 +180,7 @@ fn gaps_and_a_swapped_label_lose_no_frame() {
             while names.iter().filter(|n| seen(&motion, n)).count() < 2 {
                 let n = &names[k];
                 let m = &att.markers[att.index_of(n).unwrap()];
-                let p = kin.evaluate(&truth[f]).links[m.link.index()] * m.reference;
+                let p = kin.evaluate(state).links[m.link.index()] * m.reference;
                 let i = motion.index_of(n).unwrap();
                 motion.positions[i][f] = Some(p);
                 k += 1;
