@@ -33,6 +33,7 @@ pub mod skin;
 pub mod synth;
 pub mod template;
 pub mod tet;
+pub mod track;
 pub mod validate;
 
 pub use error::{Error, Result};

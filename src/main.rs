@@ -166,6 +166,24 @@ enum Command {
         #[arg(long)]
         out: PathBuf,
     },
+    /// Replay a motion trial of the subject (a [motions] entry of subject.toml) with its
+    /// reconstructed link model: per-frame inverse kinematics on the markers, written as
+    /// DIR/motion.json (joint centres in the lab frame, angles, marker residuals).
+    Track {
+        subject_dir: PathBuf,
+        /// The subject's reconstruction folder (holding link_model.json).
+        #[arg(long)]
+        model: PathBuf,
+        /// The motion's name in [motions] of subject.toml.
+        #[arg(long)]
+        motion: String,
+        /// A scene file whose part the subject handles ([part.markers] to follow it).
+        #[arg(long)]
+        scene: Option<PathBuf>,
+        /// Output folder.
+        #[arg(long)]
+        out: PathBuf,
+    },
     /// Reconstruct every subject folder of SUBJECTS_DIR (a sub-folder holding subject.toml) in
     /// parallel into OUT/<folder name>/, skipping subjects whose outputs were made from the same
     /// input content (and are newer); a failing subject is reported and skipped, the exit status is non-zero if any
@@ -281,6 +299,13 @@ fn main() -> ExitCode {
         Command::Grasp { scene, model, out } => {
             cli::grasp(&scene, model.as_deref(), &out).map(|_| ())
         }
+        Command::Track {
+            subject_dir,
+            model,
+            motion,
+            scene,
+            out,
+        } => cli::track(&subject_dir, &model, &motion, scene.as_deref(), &out).map(|_| ()),
         Command::Batch {
             subjects_dir,
             out,

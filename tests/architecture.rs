@@ -35,14 +35,16 @@ fn layer(module: &str) -> Option<u32> {
         // One subject's stages from the trials to the skinned hand.
         "reconstruct" => 9,
         "grasp" => 10,
+        // Replaying a captured motion with the individual hand (and its contacts).
+        "track" => 11,
         // Readers of what the stages produce: the simulator and the validation.
-        "synth" => 11,
-        "validate" => 12,
+        "synth" => 12,
+        "validate" => 13,
         // The command jobs, over everything.
-        "cli" => 13,
+        "cli" => 14,
         // The crate root (re-exports) and the binary.
-        "lib" => 14,
-        "main" => 15,
+        "lib" => 15,
+        "main" => 16,
         _ => return None,
     })
 }
@@ -636,7 +638,7 @@ fn top_level_modules_import_down_the_stage_order_only() {
                     "{} imports `{path}`: `{from}` may not import `{to}` (stage order: {})",
                     c.files[i].path.display(),
                     "base (error, rng, anatomy, geometry, io, render) -> skeleton -> template \
-                     -> measure -> mocap -> link -> skin -> tet -> pose -> grasp -> synth -> \
+                     -> measure -> mocap -> link -> skin -> tet -> pose -> grasp -> track -> synth -> \
                      validate -> cli -> main"
                 ));
             }

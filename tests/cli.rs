@@ -264,6 +264,85 @@ fn validate_like_a_real_subject(subj: &Path, model: &Path, full: &serde_json::Va
     }
 }
 
+/// `ergohand track` on the grasp trial synth wrote beside the calibration trials, scored
+/// against synth's own record of the motion (`truth_motion/`): the subject is clean, so what
+/// remains is the reconstructed link model's own error (its 1-DOF centres), not the tracker's.
+fn track_the_grasp_trial(subj: &Path, model: &Path, out: &Path) {
+    let (s, m, o) = (
+        subj.to_str().unwrap(),
+        model.to_str().unwrap(),
+        out.to_str().unwrap(),
+    );
+    let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/bottle.toml");
+    let scene = scene.to_str().unwrap();
+
+    // A motion the subject does not have: the error names subject.toml and the motions there are.
+    let r = ergohand(&["track", s, "--model", m, "--motion", "pour", "--out", o]);
+    assert_eq!(r.status.code(), Some(1));
+    let line = error_line(&r);
+    assert!(
+        line.contains("subject.toml") && line.contains("pour") && line.contains("grasp_bottle"),
+        "{line}"
+    );
+    assert!(!out.exists());
+
+    let r = ergohand(&[
+        "track",
+        s,
+        "--model",
+        m,
+        "--motion",
+        "grasp_bottle",
+        "--scene",
+        scene,
+        "--out",
+        o,
+        "-q",
+    ]);
+    assert!(r.status.success(), "{}", stderr(&r));
+    let read = |p: &Path| -> serde_json::Value {
+        serde_json::from_str(&std::fs::read_to_string(p).unwrap()).unwrap()
+    };
+    let got = read(&out.join("motion.json"));
+    let truth = read(&subj.join("truth_motion/grasp_bottle.json"));
+    let frames = truth["frames"].as_u64().unwrap() as usize;
+    assert_eq!(got["frames"].as_u64(), Some(frames as u64));
+    assert_eq!(got["units"], "mm");
+    assert!(got["unsolved_frames"].as_array().unwrap().is_empty());
+    let point = |v: &serde_json::Value| -> [f64; 3] {
+        let a = v.as_array().unwrap();
+        [0, 1, 2].map(|k| a[k].as_f64().unwrap())
+    };
+    let (mut ss, mut n, mut worst) = (0.0, 0usize, 0.0f64);
+    for (joint, t) in truth["joints"].as_object().unwrap() {
+        for f in 0..frames {
+            let (a, b) = (
+                point(&got["joints"][joint]["centre"][f]),
+                point(&t["centre"][f]),
+            );
+            let d = ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt();
+            ss += d * d;
+            n += 1;
+            worst = worst.max(d);
+        }
+    }
+    let rms = (ss / n as f64).sqrt();
+    assert!(
+        n == 16 * frames && rms < 1.0 && worst < 3.0,
+        "RMS {rms} mm, worst {worst} mm"
+    );
+    // The bottle follows its markers (Horn, exact without noise).
+    let part = &got["part"]["pose"];
+    for f in (0..frames).step_by(37) {
+        let (a, b) = (
+            point(&part[f]["translation_mm"]),
+            point(&truth["part"]["position"][f]),
+        );
+        let d = ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt();
+        assert!(d < 1e-3, "frame {f}: part {d} mm off");
+    }
+}
+
 #[test]
 fn reconstruct_and_validate_a_simulated_subject() {
     let dir = tempfile::tempdir().unwrap();
@@ -294,6 +373,7 @@ fn reconstruct_and_validate_a_simulated_subject() {
     assert!(r.status.success(), "{}", stderr(&r));
     assert!(out.join("link_model.json").is_file() && out.join("report.json").is_file());
     validate(&subj, &out, &out.join("rep"));
+    track_the_grasp_trial(&subj, &out, &dir.path().join("TRACK"));
     let metrics: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("rep/metrics.json")).unwrap())
             .unwrap();

@@ -17,6 +17,7 @@ pub mod reconstruct;
 pub mod shape_prior;
 pub mod synth;
 pub mod template;
+pub mod track;
 pub mod validate;
 
 pub use batch::batch;
@@ -29,6 +30,7 @@ pub use reconstruct::{
 pub use shape_prior::shape_prior;
 pub use synth::{synth, synth_options};
 pub use template::{template, TemplateOutputs};
+pub use track::{track, TrackSummary};
 pub use validate::{validate, validate_suite, Validation};
 
 use crate::error::{Error, Result};

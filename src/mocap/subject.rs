@@ -353,10 +353,18 @@ impl Subject {
     pub fn motion_path(&self, name: &str) -> Result<PathBuf> {
         match self.motions.get(name) {
             Some(p) => Ok(self.dir.join(p)),
-            None => Err(Error::input(
-                self.toml_path(),
-                format!("no [motions] key '{name}' (add e.g. {name} = \"trials/{name}.c3d\")"),
-            )),
+            None => {
+                let hint = if self.motions.is_empty() {
+                    format!("there is no [motions] table; add e.g. {name} = \"trials/{name}.c3d\"")
+                } else {
+                    let known: Vec<&str> = self.motions.keys().map(String::as_str).collect();
+                    format!("the motions are {}", known.join(", "))
+                };
+                Err(Error::input(
+                    self.toml_path(),
+                    format!("no [motions] key '{name}' ({hint})"),
+                ))
+            }
         }
     }
 

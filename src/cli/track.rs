@@ -1,0 +1,129 @@
+//! `ergohand track SUBJECT_DIR --model OUT --motion NAME [--scene SCENE.toml] --out DIR`: a
+//! motion trial of the subject replayed with its reconstructed link model, written as
+//! `DIR/motion.json` (spec section 5).
+
+use super::Voice;
+use crate::error::{Error, Result};
+use crate::io::output_paths::{check_output_dir, Inputs};
+use crate::mocap::subject::{Subject, TrialKind};
+use crate::track::{load_link_model, track_trial, IkOptions, PartSetup};
+use std::path::{Path, PathBuf};
+
+/// The files `track` writes into its output folder.
+pub const OUTPUT_FILES: [&str; 1] = ["motion.json"];
+
+/// What [`track`] did.
+#[derive(Clone, Debug)]
+pub struct TrackSummary {
+    /// The file written.
+    pub written: PathBuf,
+    /// Frames in the trial.
+    pub frames: usize,
+    /// Frames that could not be solved.
+    pub unsolved: usize,
+    /// Warnings, each naming the trial and the markers, joints or frames.
+    pub warnings: Vec<String>,
+}
+
+/// Track the motion `motion` of the subject folder `subject_dir` with the link model of the
+/// `reconstruct` folder `model_dir` (its markers attached from the subject's static reference
+/// trial), the part of `scene` (if given) followed by its markers or standing where the scene
+/// places it, and write `out/motion.json` atomically.
+///
+/// Errors, one line naming the file and the field or marker: no `subject.toml`, no such
+/// motion in `[motions]`, no `link_model.json` in the model folder or one of the other hand, a
+/// trial without three palm markers, a bad scene.
+pub fn track(
+    subject_dir: &Path,
+    model_dir: &Path,
+    motion: &str,
+    scene: Option<&Path>,
+    out: &Path,
+) -> Result<TrackSummary> {
+    track_job(subject_dir, model_dir, motion, scene, out, Voice::Command)
+}
+
+/// [`track`], speaking with `voice`.
+pub(crate) fn track_job(
+    subject_dir: &Path,
+    model_dir: &Path,
+    motion: &str,
+    scene: Option<&Path>,
+    out: &Path,
+    voice: Voice,
+) -> Result<TrackSummary> {
+    let subject = Subject::load(subject_dir)?;
+    let mut inputs = Inputs::files(
+        std::iter::once(subject.toml_path())
+            .chain(subject.trials.values().map(|p| subject.dir.join(p)))
+            .chain(subject.motions.values().map(|p| subject.dir.join(p)))
+            .chain(scene.map(Path::to_path_buf)),
+    )
+    .with_model(model_dir);
+    inputs.files.push(model_dir.join("link_model.json"));
+    check_output_dir(out, &OUTPUT_FILES, "--out", &inputs)?;
+
+    let kin = load_link_model(model_dir)?;
+    if kin.skeleton.side != subject.hand {
+        return Err(Error::input(
+            model_dir.join("link_model.json"),
+            format!(
+                "field 'hand' is {} but {} says hand = \"{}\"; --model must be this subject's \
+                 reconstruction",
+                kin.skeleton.side,
+                subject.toml_path().display(),
+                subject.hand
+            ),
+        ));
+    }
+    let static_trial = subject.load_trial(TrialKind::Reference)?;
+    let trial = subject.load_motion(motion)?;
+    let part = match scene {
+        None => None,
+        Some(p) => {
+            let s = crate::grasp::scene::read_scene(p)?;
+            Some(PartSetup {
+                markers: s.part_markers,
+                placed: s.part_pose,
+            })
+        }
+    };
+    let tracked = track_trial(
+        &kin,
+        &static_trial,
+        &trial,
+        part.as_ref(),
+        &IkOptions::default(),
+    )?;
+    let mut warnings = tracked.warnings.clone();
+    if scene.is_some() {
+        warnings.push(format!(
+            "{}: contacts between the skin and the part are not computed by track yet; \
+             'contacts' is empty (the part's pose per frame is in 'part')",
+            out.join("motion.json").display()
+        ));
+    }
+    let mut file = tracked.motion_file(&kin, Vec::new());
+    file.warnings = warnings.clone();
+    std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
+    let written = out.join("motion.json");
+    file.write(&written)?;
+    for w in &warnings {
+        log::log!(voice.warn(), "{w}");
+    }
+    let unsolved = file.unsolved_frames.len();
+    log::log!(
+        voice.info(),
+        "track {motion}: {} frames at {} Hz, {} solved -> {}",
+        file.frames,
+        file.rate,
+        file.frames - unsolved,
+        written.display()
+    );
+    Ok(TrackSummary {
+        written,
+        frames: file.frames,
+        unsolved,
+        warnings,
+    })
+}

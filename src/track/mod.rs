@@ -1,0 +1,290 @@
+//! Tracking a captured grasp (spec section 5): a motion trial replayed with the subject's own
+//! reconstructed link model.
+//!
+//! * [`attachment`]: each marker's link and its place on it, from the static trial.
+//! * [`kinematics`]: the link model moved by the palm's pose and the joint angles, with
+//!   analytic derivatives.
+//! * [`inverse_kinematics`]: the per-frame robust Levenberg-Marquardt fit.
+//! * [`part`]: the product's pose per frame from its markers.
+//! * [`motion_file`]: the `motion.json` document.
+//! * [`fixture`]: marker sets and motion trials made from known angles, for tests and the
+//!   bench.
+//!
+//! [`track_trial`] runs them on trials in memory; the command (`ergohand track`) reads the
+//! subject folder and the model folder and writes `motion.json`.
+
+pub mod attachment;
+pub mod fixture;
+pub mod inverse_kinematics;
+pub mod kinematics;
+pub mod motion_file;
+pub mod part;
+
+pub use attachment::{rides_on, AttachedMarker, Attachment};
+pub use inverse_kinematics::{observations, FrameSolution, IkOptions, Solver};
+pub use kinematics::{load_link_model, HandState, Kinematics};
+pub use motion_file::{ContactRecord, JointTrack, MotionFile, PartPose, PartTrack};
+pub use part::{part_poses, PartPoses};
+
+use crate::anatomy::{Joint, Link};
+use crate::error::{Error, Result};
+use crate::geometry::Point;
+use crate::mocap::trajectories::Trajectories;
+use nalgebra::Isometry3;
+use std::collections::BTreeMap;
+
+/// Where the part is: its markers in its own frame (`[part.markers]`, may be empty) and the
+/// scene's placement, used when there are no markers.
+#[derive(Clone, Debug, PartialEq)]
+pub struct PartSetup {
+    pub markers: BTreeMap<String, Point>,
+    pub placed: Isometry3<f64>,
+}
+
+/// A tracked trial.
+#[derive(Clone, Debug)]
+pub struct Tracked {
+    /// The markers and their links.
+    pub attachment: Attachment,
+    /// One per frame.
+    pub frames: Vec<FrameSolution>,
+    /// The part's pose per frame, when a part was given.
+    pub part: Option<PartPoses>,
+    /// Frame rate, Hz.
+    pub rate: f64,
+    /// Warnings, each naming the trial and the markers, joints or frames.
+    pub warnings: Vec<String>,
+}
+
+/// Track `motion` with the model `kin`, its markers attached from `static_trial`.
+///
+/// Errors (naming the file and the markers): the static trial attaches fewer than three palm
+/// markers, or the motion trial carries fewer than three of the attached palm markers.
+/// Frames that cannot be solved are not errors: they are `None`, named in one warning.
+pub fn track_trial(
+    kin: &Kinematics,
+    static_trial: &Trajectories,
+    motion: &Trajectories,
+    part: Option<&PartSetup>,
+    opts: &IkOptions,
+) -> Result<Tracked> {
+    let attachment = Attachment::from_static(&kin.skeleton, static_trial);
+    let palm: Vec<&str> = attachment
+        .markers
+        .iter()
+        .filter(|m| m.link == Link::Palm)
+        .map(|m| m.name.as_str())
+        .collect();
+    if palm.len() < 3 {
+        return Err(Error::input(
+            &static_trial.source,
+            format!(
+                "only {} palm markers ({}) to attach; tracking needs three of PALM_1..4, the \
+                 MCP markers, T_CMC, I_MCP_LAT, L_MCP_LAT",
+                palm.len(),
+                palm.join(", ")
+            ),
+        ));
+    }
+    let in_motion: Vec<&str> = palm
+        .iter()
+        .copied()
+        .filter(|n| {
+            motion
+                .track(n)
+                .is_some_and(|t| t.iter().any(Option::is_some))
+        })
+        .collect();
+    if in_motion.len() < 3 {
+        return Err(Error::input(
+            &motion.source,
+            format!(
+                "only {} palm markers with samples ({}); tracking needs three of {}",
+                in_motion.len(),
+                in_motion.join(", "),
+                palm.join(", ")
+            ),
+        ));
+    }
+    let mut warnings = Vec::new();
+    let ignored: Vec<&str> = motion
+        .labels
+        .iter()
+        .map(String::as_str)
+        .filter(|l| attachment.index_of(l).is_none())
+        .filter(|l| !(part.is_some_and(|p| p.markers.contains_key(*l))))
+        .collect();
+    if !ignored.is_empty() {
+        warnings.push(format!(
+            "{}: markers {} are not attached (not in the static trial {}, or on no link) and \
+             are ignored",
+            motion.source.display(),
+            ignored.join(", "),
+            static_trial.source.display()
+        ));
+    }
+    let obs = observations(&attachment, motion);
+    let solver = Solver::new(kin, &attachment, opts.clone());
+    let frames = solver.track(&obs);
+
+    let unsolved: Vec<usize> = (0..frames.len())
+        .filter(|&f| frames[f].state.is_none())
+        .collect();
+    if !unsolved.is_empty() {
+        warnings.push(format!(
+            "{}: {} of {} frames could not be solved (fewer than {} palm markers seen, or no \
+             fit within {} mm) and are null: frames {}",
+            motion.source.display(),
+            unsolved.len(),
+            frames.len(),
+            opts.min_palm_markers,
+            opts.max_rms_mm,
+            ranges(&unsolved)
+        ));
+    }
+    for j in Joint::ALL {
+        let held: Vec<usize> = (0..frames.len())
+            .filter(|&f| frames[f].state.is_some() && frames[f].held.contains(&j))
+            .collect();
+        if !held.is_empty() {
+            warnings.push(format!(
+                "{}: joint {j} held at its previous angles for want of markers distal to it \
+                 in {} frames: {}",
+                motion.source.display(),
+                held.len(),
+                ranges(&held)
+            ));
+        }
+    }
+    for (i, m) in attachment.markers.iter().enumerate() {
+        let rej: Vec<usize> = (0..frames.len())
+            .filter(|&f| frames[f].rejected.contains(&i))
+            .collect();
+        if !rej.is_empty() {
+            warnings.push(format!(
+                "{}: marker {} rejected as an outlier (a swapped label or a stray sample) in {} \
+                 frames: {}",
+                motion.source.display(),
+                m.name,
+                rej.len(),
+                ranges(&rej)
+            ));
+        }
+    }
+    let part = part.map(|p| part_poses(motion, &p.markers, &p.placed));
+    Ok(Tracked {
+        attachment,
+        frames,
+        part,
+        rate: motion.frame_rate,
+        warnings,
+    })
+}
+
+impl Tracked {
+    /// The `motion.json` document (contacts as given).
+    pub fn motion_file(&self, kin: &Kinematics, contacts: Vec<ContactRecord>) -> MotionFile {
+        let n = self.frames.len();
+        let mut joints = BTreeMap::new();
+        let centres: Vec<Option<[Point; 16]>> = self
+            .frames
+            .iter()
+            .map(|f| f.state.as_ref().map(|s| kin.centres(s)))
+            .collect();
+        for j in Joint::ALL {
+            let dof = kin.dof[j.index()];
+            let track = JointTrack {
+                centre: centres
+                    .iter()
+                    .map(|c| c.map(|c| [c[j.index()].x, c[j.index()].y, c[j.index()].z]))
+                    .collect(),
+                angles_deg: self
+                    .frames
+                    .iter()
+                    .map(|f| {
+                        f.state.as_ref().map(|s| {
+                            s.angles[j.index()][..dof]
+                                .iter()
+                                .map(|a| a.to_degrees())
+                                .collect()
+                        })
+                    })
+                    .collect(),
+                held_frames: (0..n)
+                    .filter(|&f| self.frames[f].state.is_some() && self.frames[f].held.contains(&j))
+                    .collect(),
+            };
+            joints.insert(j.name().to_string(), track);
+        }
+        let mut marker_residual_mm = BTreeMap::new();
+        let mut rejected_frames = BTreeMap::new();
+        for (i, m) in self.attachment.markers.iter().enumerate() {
+            marker_residual_mm.insert(
+                m.name.clone(),
+                self.frames.iter().map(|f| f.residual_mm[i]).collect(),
+            );
+            let rej: Vec<usize> = (0..n)
+                .filter(|&f| self.frames[f].rejected.contains(&i))
+                .collect();
+            if !rej.is_empty() {
+                rejected_frames.insert(m.name.clone(), rej);
+            }
+        }
+        let part = self.part.as_ref().map(|(poses, rms)| PartTrack {
+            source: if rms.iter().any(Option::is_some) || poses.iter().any(Option::is_none) {
+                "markers".into()
+            } else {
+                "scene".into()
+            },
+            pose: poses
+                .iter()
+                .map(|p| p.as_ref().map(PartPose::from_isometry))
+                .collect(),
+            marker_rms_mm: if rms.iter().any(Option::is_some) {
+                rms.clone()
+            } else {
+                Vec::new()
+            },
+        });
+        MotionFile {
+            units: "mm".into(),
+            rate: self.rate,
+            frames: n,
+            frame: "lab".into(),
+            joints,
+            marker_residual_mm,
+            contacts,
+            unsolved_frames: (0..n).filter(|&f| self.frames[f].state.is_none()).collect(),
+            rejected_frames,
+            part,
+            warnings: self.warnings.clone(),
+        }
+    }
+}
+
+/// `"3-7, 12, 20-21"`: sorted frame indices as ranges, at most 12 shown.
+pub fn ranges(frames: &[usize]) -> String {
+    let mut parts: Vec<String> = Vec::new();
+    let mut i = 0;
+    while i < frames.len() {
+        let mut j = i;
+        while j + 1 < frames.len() && frames[j + 1] == frames[j] + 1 {
+            j += 1;
+        }
+        parts.push(if i == j {
+            frames[i].to_string()
+        } else {
+            format!("{}-{}", frames[i], frames[j])
+        });
+        i = j + 1;
+    }
+    let more = parts.len().saturating_sub(12);
+    parts.truncate(12);
+    if more > 0 {
+        parts.push(format!("... ({more} more)"));
+    }
+    parts.join(", ")
+}
+
+#[cfg(test)]
+mod tests;

@@ -1,0 +1,398 @@
+//! The tracker against motions made from known angles ([`super::fixture`]): markers placed on
+//! the template's skeleton, moved by a smooth grasp, optionally with noise, gaps, a swapped
+//! label or an occluded digit.
+
+use super::fixture::{grasp_states, motion_trial, static_markers, static_trial};
+use super::*;
+use crate::anatomy::{Finger, Side};
+use crate::skeleton::Skeleton;
+use nalgebra::{Translation3, UnitQuaternion};
+
+fn skeleton(side: Side) -> Skeleton {
+    crate::template::load_template(side).unwrap().skeleton
+}
+
+/// A model, its static trial and the true states of a grasp of `n` frames.
+fn setup(side: Side, n: usize) -> (Kinematics, Trajectories, Attachment, Vec<HandState>) {
+    let sk = skeleton(side);
+    let kin = Kinematics::full(sk.clone());
+    let st = static_trial(&static_markers(&sk), 3);
+    let att = Attachment::from_static(&sk, &st);
+    // Somewhere else in the lab than the static trial, and turned.
+    let start = Isometry3::from_parts(
+        Translation3::new(150.0, -40.0, 220.0),
+        UnitQuaternion::from_euler_angles(0.2, 0.9, -0.4),
+    );
+    let states = grasp_states(n, 100.0, start);
+    (kin, st, att, states)
+}
+
+/// The solver without its temporal term: noise-free markers then determine every frame
+/// exactly, so the exactness tests can hold it to rounding. The default's temporal bias has
+/// its own bound ([`the_temporal_term_biases_noise_free_frames_by_microns`]).
+fn exact() -> IkOptions {
+    IkOptions {
+        smoothness: 0.0,
+        ..IkOptions::default()
+    }
+}
+
+/// Largest centre error (mm) and angle error (deg) over solved frames, and the centre RMS.
+fn errors(
+    kin: &Kinematics,
+    tracked: &Tracked,
+    truth: &[HandState],
+    skip: &[Joint],
+) -> (f64, f64, f64) {
+    let (mut worst_c, mut worst_a, mut ss, mut n) = (0.0f64, 0.0f64, 0.0, 0usize);
+    for (f, t) in truth.iter().enumerate() {
+        let Some(s) = &tracked.frames[f].state else {
+            continue;
+        };
+        let (cs, ct) = (kin.centres(s), kin.centres(t));
+        for j in Joint::ALL {
+            let d = (cs[j.index()] - ct[j.index()]).norm();
+            worst_c = worst_c.max(d);
+            ss += d * d;
+            n += 1;
+            if skip.contains(&j) {
+                continue;
+            }
+            for k in 0..kin.dof[j.index()] {
+                let a = (s.angles[j.index()][k] - t.angles[j.index()][k])
+                    .to_degrees()
+                    .abs();
+                worst_a = worst_a.max(a);
+            }
+        }
+    }
+    (worst_c, worst_a, (ss / n as f64).sqrt())
+}
+
+#[test]
+fn noise_free_markers_give_back_the_angles_and_centres() {
+    for side in [Side::Right, Side::Left] {
+        let (kin, st, att, truth) = setup(side, 150);
+        let motion = motion_trial(&kin, &att, &truth, 100.0, 0.0, 1);
+        let tracked = track_trial(&kin, &st, &motion, None, &exact()).unwrap();
+        assert!(tracked.warnings.is_empty(), "{:?}", tracked.warnings);
+        assert!(tracked.frames.iter().all(|f| f.state.is_some()));
+        let (c, a, _) = errors(&kin, &tracked, &truth, &[]);
+        assert!(
+            c < 1e-6 && a < 1e-6,
+            "{side}: centres {c:e} mm, angles {a:e} deg"
+        );
+        let worst_res = tracked
+            .frames
+            .iter()
+            .flat_map(|f| f.residual_mm.iter().flatten())
+            .fold(0.0f64, |m, r| m.max(*r));
+        assert!(worst_res < 1e-6, "{worst_res}");
+    }
+}
+
+#[test]
+fn the_temporal_term_biases_noise_free_frames_by_microns() {
+    // The constant-velocity prediction misses by the motion's acceleration, and the temporal
+    // term pulls toward it with a weight far below the markers': the pull must stay a small
+    // fraction of the markers' noise (tenths of a millimetre), not reach it.
+    let (kin, st, att, truth) = setup(Side::Right, 150);
+    let motion = motion_trial(&kin, &att, &truth, 100.0, 0.0, 1);
+    let tracked = track_trial(&kin, &st, &motion, None, &IkOptions::default()).unwrap();
+    let (c, a, _) = errors(&kin, &tracked, &truth, &[]);
+    assert!(c < 0.01 && a < 0.05, "centres {c} mm, angles {a} deg");
+    let (c0, a0, _) = errors(
+        &kin,
+        &track_trial(&kin, &st, &motion, None, &exact()).unwrap(),
+        &truth,
+        &[],
+    );
+    // And it is the temporal term that moves them: without it the frames are exact.
+    assert!(c0 < 1e-6 && a0 < 1e-6 && c > c0, "{c0} {a0} {c}");
+}
+
+#[test]
+fn the_static_trial_tracked_gives_the_models_own_centres() {
+    let (kin, st, _, _) = setup(Side::Right, 1);
+    let tracked = track_trial(&kin, &st, &st, None, &exact()).unwrap();
+    for f in &tracked.frames {
+        let c = kin.centres(f.state.as_ref().unwrap());
+        for j in Joint::ALL {
+            assert!((c[j.index()] - kin.skeleton.centre(j)).norm() < 1e-6, "{j}");
+        }
+    }
+}
+
+#[test]
+fn noise_of_sigma_gives_centre_errors_of_the_order_of_sigma() {
+    let (kin, st, att, truth) = setup(Side::Right, 300);
+    for sd in [0.5, 1.0] {
+        let motion = motion_trial(&kin, &att, &truth, 100.0, sd, 7);
+        let tracked = track_trial(&kin, &st, &motion, None, &IkOptions::default()).unwrap();
+        assert!(tracked.frames.iter().all(|f| f.state.is_some()));
+        let (worst, _, rms) = errors(&kin, &tracked, &truth, &[]);
+        eprintln!("noise sd {sd} mm: centre RMS {rms:.3} mm, worst {worst:.2} mm");
+        assert!(rms < 1.5 * sd && rms > 0.05 * sd, "sd {sd}: rms {rms}");
+    }
+}
+
+/// Drop a marker's sample.
+fn drop_sample(t: &mut Trajectories, name: &str, f: usize) {
+    let i = t.index_of(name).unwrap();
+    t.positions[i][f] = None;
+}
+
+#[test]
+fn gaps_and_a_swapped_label_lose_no_frame() {
+    let (kin, st, att, truth) = setup(Side::Right, 200);
+    let mut motion = motion_trial(&kin, &att, &truth, 100.0, 0.0, 3);
+    let mut rng = crate::rng::Rng::new(11);
+    // Gaps: about a fifth of all samples, keeping three palm markers and two per digit.
+    for (f, state) in truth.iter().enumerate() {
+        for m in &att.markers {
+            if rng.uniform() < 0.2 {
+                drop_sample(&mut motion, &m.name, f);
+            }
+        }
+        let seen = |t: &Trajectories, n: &str| t.get(n, f).is_some();
+        let palm: Vec<String> = att
+            .markers
+            .iter()
+            .filter(|m| m.link == Link::Palm)
+            .map(|m| m.name.clone())
+            .collect();
+        if palm.iter().filter(|n| seen(&motion, n)).count() < 3 {
+            for n in &palm[..3] {
+                let i = motion.index_of(n).unwrap();
+                let p = kin.evaluate(state).links[Link::Palm.index()]
+                    * att.markers[att.index_of(n).unwrap()].reference;
+                motion.positions[i][f] = Some(p);
+            }
+        }
+        for fi in Finger::ALL {
+            let names: Vec<String> = att
+                .markers
+                .iter()
+                .filter(|m| m.link.joint().and_then(Joint::finger) == Some(fi))
+                .map(|m| m.name.clone())
+                .collect();
+            let mut k = 0;
+            while names.iter().filter(|n| seen(&motion, n)).count() < 2 {
+                let n = &names[k];
+                let m = &att.markers[att.index_of(n).unwrap()];
+                let p = kin.evaluate(state).links[m.link.index()] * m.reference;
+                let i = motion.index_of(n).unwrap();
+                motion.positions[i][f] = Some(p);
+                k += 1;
+            }
+        }
+    }
+    // A swapped label: the index and middle nails trade names for 30 frames.
+    let (a, b) = (
+        motion.index_of("I_NAIL").unwrap(),
+        motion.index_of("M_NAIL").unwrap(),
+    );
+    for f in 100..130 {
+        let pa = motion.positions[a][f];
+        motion.positions[a][f] = motion.positions[b][f];
+        motion.positions[b][f] = pa;
+    }
+    let tracked = track_trial(&kin, &st, &motion, None, &exact()).unwrap();
+    assert!(
+        tracked.frames.iter().all(|f| f.state.is_some()),
+        "{:?}",
+        tracked.warnings
+    );
+    // Centres: exact wherever the markers determine them, that is wherever no joint proximal
+    // to the centre is held (a held joint keeps the last angles it had seen).
+    let mut worst = 0.0f64;
+    for (f, t) in truth.iter().enumerate() {
+        let fr = &tracked.frames[f];
+        let (cs, ct) = (kin.centres(fr.state.as_ref().unwrap()), kin.centres(t));
+        for j in Joint::ALL {
+            let mut p = j.parent().filter(|&p| p != Joint::Wrist);
+            let mut determined = true;
+            while let Some(pj) = p {
+                determined &= !fr.held.contains(&pj);
+                p = pj.parent().filter(|&p| p != Joint::Wrist);
+            }
+            if determined {
+                worst = worst.max((cs[j.index()] - ct[j.index()]).norm());
+            }
+        }
+    }
+    let c = worst;
+    assert!(c < 1e-4, "worst centre error {c} mm");
+    let ia = att.index_of("I_NAIL").unwrap();
+    let ib = att.index_of("M_NAIL").unwrap();
+    for f in 100..130 {
+        let fr = &tracked.frames[f];
+        for i in [ia, ib] {
+            if fr.residual_mm[i].is_some() {
+                assert!(fr.rejected.contains(&i), "frame {f}: {:?}", fr.rejected);
+            }
+        }
+    }
+    assert!(tracked
+        .warnings
+        .iter()
+        .any(|w| w.contains("I_NAIL") && w.contains("outlier")));
+}
+
+#[test]
+fn an_occluded_digit_holds_its_angles_and_is_flagged() {
+    let (kin, st, att, truth) = setup(Side::Right, 120);
+    let mut motion = motion_trial(&kin, &att, &truth, 100.0, 0.0, 5);
+    for f in 60..90 {
+        for n in ["R_PIP", "R_DIP", "R_NAIL"] {
+            drop_sample(&mut motion, n, f);
+        }
+    }
+    let tracked = track_trial(&kin, &st, &motion, None, &exact()).unwrap();
+    assert!(tracked.frames.iter().all(|f| f.state.is_some()));
+    let held = [Joint::RMcp, Joint::RPip, Joint::RDip];
+    let before = tracked.frames[59].state.as_ref().unwrap().angles;
+    for f in 60..90 {
+        let fr = &tracked.frames[f];
+        assert_eq!(fr.held, held, "frame {f}");
+        let s = fr.state.as_ref().unwrap();
+        for j in held {
+            assert_eq!(s.angles[j.index()], before[j.index()], "frame {f} {j}");
+        }
+    }
+    // Every other digit is as exact as ever, and the ring finger again after the gap.
+    let (c, a, _) = errors(
+        &kin,
+        &tracked,
+        &truth,
+        &[Joint::RMcp, Joint::RPip, Joint::RDip, Joint::RDip],
+    );
+    let _ = c;
+    assert!(a < 1e-6, "{a}");
+    let s = tracked.frames[100].state.as_ref().unwrap();
+    for j in held {
+        for k in 0..kin.dof[j.index()] {
+            let d = (s.angles[j.index()][k] - truth[100].angles[j.index()][k]).abs();
+            assert!(d < 1e-8, "{j} dof {k}: {d:e} rad");
+        }
+    }
+    let file = tracked.motion_file(&kin, Vec::new());
+    assert_eq!(
+        file.joints["R_PIP"].held_frames,
+        (60..90).collect::<Vec<_>>()
+    );
+    assert!(tracked
+        .warnings
+        .iter()
+        .any(|w| w.contains("R_PIP") && w.contains("60-89")));
+}
+
+#[test]
+fn frames_without_three_palm_markers_are_null_and_named_once() {
+    let (kin, st, att, truth) = setup(Side::Right, 40);
+    let mut motion = motion_trial(&kin, &att, &truth, 100.0, 0.0, 5);
+    let palm: Vec<String> = att
+        .markers
+        .iter()
+        .filter(|m| m.link == Link::Palm)
+        .map(|m| m.name.clone())
+        .collect();
+    for f in 10..13 {
+        for n in &palm[2..] {
+            drop_sample(&mut motion, n, f);
+        }
+    }
+    let tracked = track_trial(&kin, &st, &motion, None, &exact()).unwrap();
+    let unsolved: Vec<usize> = (0..40)
+        .filter(|&f| tracked.frames[f].state.is_none())
+        .collect();
+    assert_eq!(unsolved, [10, 11, 12]);
+    let w: Vec<&String> = tracked
+        .warnings
+        .iter()
+        .filter(|w| w.contains("could not be solved"))
+        .collect();
+    assert_eq!(w.len(), 1);
+    assert!(w[0].contains("10-12"), "{}", w[0]);
+    let (c, _, _) = errors(&kin, &tracked, &truth, &[]);
+    assert!(c < 1e-6, "{c}");
+    let file = tracked.motion_file(&kin, Vec::new());
+    let json: serde_json::Value = serde_json::from_str(&file.to_json()).unwrap();
+    assert!(json["joints"]["I_PIP"]["centre"][11].is_null());
+    assert_eq!(
+        json["joints"]["I_PIP"]["angles_deg"][0]
+            .as_array()
+            .unwrap()
+            .len(),
+        1
+    );
+    assert_eq!(
+        json["joints"]["I_MCP"]["angles_deg"][0]
+            .as_array()
+            .unwrap()
+            .len(),
+        3
+    );
+    assert_eq!(json["frames"], 40);
+    assert_eq!(json["frame"], "lab");
+    assert_eq!(json["units"], "mm");
+}
+
+#[test]
+fn too_few_palm_markers_in_the_trial_is_an_error_naming_it() {
+    let (kin, st, att, truth) = setup(Side::Right, 5);
+    let motion = motion_trial(&kin, &att, &truth, 100.0, 0.0, 5);
+    let keep: Vec<usize> = (0..motion.labels.len())
+        .filter(|&i| {
+            att.markers[att.index_of(&motion.labels[i]).unwrap()].link != Link::Palm
+                || motion.labels[i] == "PALM_1"
+        })
+        .collect();
+    let t = Trajectories::new(
+        100.0,
+        keep.iter().map(|&i| motion.labels[i].clone()).collect(),
+        keep.iter().map(|&i| motion.positions[i].clone()).collect(),
+        "trials/grasp.c3d",
+    )
+    .unwrap();
+    let e = track_trial(&kin, &st, &t, None, &IkOptions::default())
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("grasp.c3d") && e.contains("PALM_1") && e.contains("palm markers"),
+        "{e}"
+    );
+}
+
+#[test]
+fn a_two_dof_mcp_model_is_respected() {
+    let sk = skeleton(Side::Right);
+    let mut dof = Joint::ALL.map(|j| j.dof());
+    for f in &Finger::ALL[1..] {
+        dof[f.joints()[0].index()] = 2;
+    }
+    let kin = Kinematics::new(sk.clone(), dof);
+    let st = static_trial(&static_markers(&sk), 1);
+    let att = Attachment::from_static(&sk, &st);
+    let mut truth = grasp_states(60, 100.0, Isometry3::identity());
+    for s in &mut truth {
+        for f in &Finger::ALL[1..] {
+            s.angles[f.joints()[0].index()][2] = 0.0;
+        }
+    }
+    let motion = motion_trial(&kin, &att, &truth, 100.0, 0.0, 1);
+    let tracked = track_trial(&kin, &st, &motion, None, &exact()).unwrap();
+    let (c, a, _) = errors(&kin, &tracked, &truth, &[]);
+    assert!(c < 1e-6 && a < 1e-6, "{c} {a}");
+    let file = tracked.motion_file(&kin, Vec::new());
+    assert_eq!(
+        file.joints["M_MCP"].angles_deg[0].as_ref().unwrap().len(),
+        2
+    );
+}
+
+#[test]
+fn ranges_read_as_ranges() {
+    assert_eq!(ranges(&[1, 2, 3, 7, 9, 10]), "1-3, 7, 9-10");
+    assert_eq!(ranges(&[]), "");
+}
