@@ -6,7 +6,12 @@ use super::Voice;
 use crate::error::{Error, Result};
 use crate::io::output_paths::{check_output_dir, Inputs};
 use crate::mocap::subject::{Subject, TrialKind};
-use crate::track::{load_link_model, track_trial, IkOptions, PartSetup};
+use crate::grasp::hand::SkinnedHand;
+use crate::grasp::scene::Scene;
+use crate::track::{
+    load_link_model, replay_contacts, track_trial, ContactReplay, IkOptions, Kinematics,
+    PartSetup, ReplayOptions, Tracked,
+};
 use std::path::{Path, PathBuf};
 
 /// The files `track` writes into its output folder.
@@ -78,16 +83,11 @@ pub(crate) fn track_job(
     }
     let static_trial = subject.load_trial(TrialKind::Reference)?;
     let trial = subject.load_motion(motion)?;
-    let part = match scene {
-        None => None,
-        Some(p) => {
-            let s = crate::grasp::scene::read_scene(p)?;
-            Some(PartSetup {
-                markers: s.part_markers,
-                placed: s.part_pose,
-            })
-        }
-    };
+    let scene = scene.map(crate::grasp::scene::read_scene).transpose()?;
+    let part = scene.as_ref().map(|s| PartSetup {
+        markers: s.part_markers.clone(),
+        placed: s.part_pose,
+    });
     let tracked = track_trial(
         &kin,
         &static_trial,
@@ -96,14 +96,12 @@ pub(crate) fn track_job(
         &IkOptions::default(),
     )?;
     let mut warnings = tracked.warnings.clone();
-    if scene.is_some() {
-        warnings.push(format!(
-            "{}: contacts between the skin and the part are not computed by track yet; \
-             'contacts' is empty (the part's pose per frame is in 'part')",
-            out.join("motion.json").display()
-        ));
-    }
-    let mut file = tracked.motion_file(&kin, Vec::new());
+    let replay = match &scene {
+        Some(scene) => contacts(model_dir, scene, &kin, &tracked, &mut warnings)?,
+        None => None,
+    };
+    let records = replay.as_ref().map(ContactReplay::records).unwrap_or_default();
+    let mut file = tracked.motion_file(&kin, records);
     file.warnings = warnings.clone();
     std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
     let written = out.join("motion.json");
@@ -126,4 +124,44 @@ pub(crate) fn track_job(
         unsolved,
         warnings,
     })
+}
+
+/// The contacts of the model's skin with the scene's part over `tracked`, or `None` (with a
+/// warning) when the model folder has no skin to pose.
+fn contacts(
+    model_dir: &Path,
+    scene: &Scene,
+    kin: &Kinematics,
+    tracked: &Tracked,
+    warnings: &mut Vec<String>,
+) -> Result<Option<ContactReplay>> {
+    let skin = model_dir.join("skin.obj");
+    if !skin.exists() {
+        warnings.push(format!(
+            "{}: file not found, so contacts are not computed ('contacts' is empty); re-run \
+             reconstruct into the --model folder",
+            skin.display()
+        ));
+        return Ok(None);
+    }
+    let hand = SkinnedHand::load(model_dir)?;
+    let (part, part_warnings) =
+        crate::grasp::scene_part_with_band(
+        scene,
+        &nalgebra::Isometry3::identity(),
+        ReplayOptions::default().tolerance_mm,
+    )?;
+    warnings.extend(part_warnings);
+    let replay = replay_contacts(&hand, kin, tracked, &part, &ReplayOptions::default());
+    let missing = replay.missing(tracked);
+    if !missing.is_empty() {
+        warnings.push(format!(
+            "{}: the part's pose is unknown (fewer than three of its markers seen) in {} solved \
+             frames, which have no contacts: frames {}",
+            scene.path.display(),
+            missing.len(),
+            crate::track::ranges(&missing)
+        ));
+    }
+    Ok(Some(replay))
 }

@@ -47,7 +47,7 @@ pub struct PartShape {
 
 /// Band of the broad phase, mm: queries with a search radius up to this skip the exact
 /// projection of every point the grid puts outside the band.
-pub(crate) const GRID_BAND_MM: f64 = 3.0;
+pub const GRID_BAND_MM: f64 = 3.0;
 
 /// A point against the part, from [`PartShape::probe`].
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -79,6 +79,15 @@ impl PartShape {
     /// Build the query structure of `mesh` (mm, world frame). Returns warnings: an open or
     /// non-manifold part falls back to surface distance without inside tests.
     pub fn new(mesh: TriMesh) -> Result<(PartShape, Vec<String>)> {
+        Self::with_band(mesh, GRID_BAND_MM)
+    }
+
+    /// [`PartShape::new`] with a broad phase of band `band_mm`: queries with a search radius
+    /// up to it are answered by the grid for every point farther than about twice the band
+    /// from the surface. A narrower band than the default's pays when the search radius is
+    /// small and most points lie a few millimetres off the surface (a hand tracked on the
+    /// part, where every frame is queried); its grid has eight times the cells per halving.
+    pub fn with_band(mesh: TriMesh, band_mm: f64) -> Result<(PartShape, Vec<String>)> {
         let mut warnings = Vec::new();
         if mesh.n_faces() == 0 {
             return Err(Error::invalid("part: the mesh has no triangles"));
@@ -119,7 +128,7 @@ impl PartShape {
                 size.x, size.y, size.z
             ));
         }
-        let grid = NearGrid::new(&mesh, GRID_BAND_MM, closed);
+        let grid = NearGrid::new(&mesh, band_mm, closed);
         Ok((
             PartShape {
                 face_normals: mesh.face_normals(),

@@ -29,6 +29,7 @@ use crate::geometry::{Point, TriMesh};
 use crate::io::Units;
 use autograsp::{autograsp, root_for, AutograspOptions};
 use contact::{contacts, vertex_areas, ContactOptions, ContactSet, PartShape};
+use nalgebra::Isometry3;
 use plan::grasp_plan;
 use scene::{Approach, Scene};
 use serde::Serialize;
@@ -274,16 +275,25 @@ fn grasp_from(
     })
 }
 
-/// Evaluate a scene with `hand` (as `ergohand grasp` does); the part's warnings (open mesh,
-/// size against a hand) are logged as soon as the part is read, and kept in the report.
-pub fn run_scene(scene: &Scene, hand: &dyn PosableHand) -> Result<GraspOutcome> {
-    let mut timings = Timings::default();
-    let started = std::time::Instant::now();
-    let clock = started;
-    let read = read_part(&scene.part_file, scene.part_units)?.transformed(&scene.part_pose);
+/// The part of `scene` placed by `pose` (the scene's `part_pose` for a grasp, the identity for
+/// the part's own frame), cleaned of duplicate and degenerate triangles and ready for queries,
+/// with its warnings (cleaning, open mesh, size against a hand), each naming the scene and the
+/// part's file.
+pub fn scene_part(scene: &Scene, pose: &Isometry3<f64>) -> Result<(PartShape, Vec<String>)> {
+    scene_part_with_band(scene, pose, contact::GRID_BAND_MM)
+}
+
+/// [`scene_part`] with the broad phase's band `band_mm` ([`PartShape::with_band`]).
+pub fn scene_part_with_band(
+    scene: &Scene,
+    pose: &Isometry3<f64>,
+    band_mm: f64,
+) -> Result<(PartShape, Vec<String>)> {
+    let read = read_part(&scene.part_file, scene.part_units)?.transformed(pose);
     // Duplicate and degenerate triangles out before anything else sees the part.
     let (mesh, cleaning) = parts::clean_part(&read);
-    let (part, mut warnings) = PartShape::new(mesh).map_err(|e| e.in_file(&scene.part_file))?;
+    let (part, mut warnings) =
+        PartShape::with_band(mesh, band_mm).map_err(|e| e.in_file(&scene.part_file))?;
     if cleaning.changed() {
         warnings.insert(0, cleaning.describe());
     }
@@ -294,6 +304,16 @@ pub fn run_scene(scene: &Scene, hand: &dyn PosableHand) -> Result<GraspOutcome> 
             scene.part_file.display()
         );
     }
+    Ok((part, warnings))
+}
+
+/// Evaluate a scene with `hand` (as `ergohand grasp` does); the part's warnings (open mesh,
+/// size against a hand) are logged as soon as the part is read, and kept in the report.
+pub fn run_scene(scene: &Scene, hand: &dyn PosableHand) -> Result<GraspOutcome> {
+    let mut timings = Timings::default();
+    let started = std::time::Instant::now();
+    let clock = started;
+    let (part, mut warnings) = scene_part(scene, &scene.part_pose)?;
     // Shown now, not with the results: a part in the wrong units usually ends the scene with
     // an error (the hand starts inside it), and the warning is what explains it.
     for w in &warnings {

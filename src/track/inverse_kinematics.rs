@@ -70,6 +70,8 @@ pub struct IkOptions {
     pub min_digit_markers: usize,
     /// Levenberg-Marquardt iterations at most per solve.
     pub max_iterations: usize,
+    /// Longest gap in the part's markers bridged by interpolating its pose, s.
+    pub part_gap_s: f64,
 }
 
 impl Default for IkOptions {
@@ -85,6 +87,7 @@ impl Default for IkOptions {
             min_palm_markers: 3,
             min_digit_markers: 2,
             max_iterations: 40,
+            part_gap_s: 0.5,
         }
     }
 }

@@ -6,6 +6,8 @@
 //!   analytic derivatives.
 //! * [`inverse_kinematics`]: the per-frame robust Levenberg-Marquardt fit.
 //! * [`part`]: the product's pose per frame from its markers.
+//! * [`contacts`]: the posed skin against the posed part, frame by frame, and the contact map
+//!   over the trial.
 //! * [`motion_file`]: the `motion.json` document.
 //! * [`fixture`]: marker sets and motion trials made from known angles, for tests and the
 //!   bench.
@@ -14,6 +16,7 @@
 //! subject folder and the model folder and writes `motion.json`.
 
 pub mod attachment;
+pub mod contacts;
 pub mod fixture;
 pub mod inverse_kinematics;
 pub mod kinematics;
@@ -21,10 +24,11 @@ pub mod motion_file;
 pub mod part;
 
 pub use attachment::{rides_on, AttachedMarker, Attachment};
+pub use contacts::{replay_contacts, ContactReplay, FrameContacts, ReplayOptions};
 pub use inverse_kinematics::{observations, FrameSolution, IkOptions, Solver};
 pub use kinematics::{load_link_model, HandState, Kinematics};
 pub use motion_file::{ContactRecord, JointTrack, MotionFile, PartPose, PartTrack};
-pub use part::{part_poses, PartPoses};
+pub use part::{fill_pose_gaps, part_poses, PartPoses};
 
 use crate::anatomy::{Joint, Link};
 use crate::error::{Error, Result};
@@ -48,8 +52,10 @@ pub struct Tracked {
     pub attachment: Attachment,
     /// One per frame.
     pub frames: Vec<FrameSolution>,
-    /// The part's pose per frame, when a part was given.
+    /// The part's pose per frame, when a part was given (short gaps filled).
     pub part: Option<PartPoses>,
+    /// Frames whose part pose was interpolated across a gap in its markers.
+    pub part_filled: Vec<usize>,
     /// Frame rate, Hz.
     pub rate: f64,
     /// Warnings, each naming the trial and the markers, joints or frames.
@@ -171,8 +177,24 @@ pub fn track_trial(
             ));
         }
     }
-    let part = part.map(|p| part_poses(motion, &p.markers, &p.placed));
+    let mut part = part.map(|p| part_poses(motion, &p.markers, &p.placed));
+    let mut part_filled = Vec::new();
+    if let Some((poses, _)) = part.as_mut() {
+        let max_gap = (opts.part_gap_s * motion.frame_rate).floor() as usize;
+        part_filled = fill_pose_gaps(poses, max_gap);
+        if !part_filled.is_empty() {
+            warnings.push(format!(
+                "{}: the part's pose interpolated across gaps of up to {} s in its markers in \
+                 {} frames: {}",
+                motion.source.display(),
+                opts.part_gap_s,
+                part_filled.len(),
+                ranges(&part_filled)
+            ));
+        }
+    }
     Ok(Tracked {
+        part_filled,
         attachment,
         frames,
         part,
@@ -240,6 +262,7 @@ impl Tracked {
                 .iter()
                 .map(|p| p.as_ref().map(PartPose::from_isometry))
                 .collect(),
+            filled_frames: self.part_filled.clone(),
             marker_rms_mm: if rms.iter().any(Option::is_some) {
                 rms.clone()
             } else {
@@ -259,6 +282,28 @@ impl Tracked {
             part,
             warnings: self.warnings.clone(),
         }
+    }
+}
+
+impl ContactReplay {
+    /// The `motion.json` contact records: per frame, one per link in contact, in link order.
+    pub fn records(&self) -> Vec<ContactRecord> {
+        let mut out = Vec::new();
+        for (f, fc) in self.frames.iter().enumerate() {
+            let Some(fc) = fc else { continue };
+            for l in Link::ALL {
+                let a = fc.link_area_mm2[l.index()];
+                if a > 0.0 {
+                    out.push(ContactRecord {
+                        frame: f,
+                        link: l.name().to_string(),
+                        area_mm2: a,
+                        depth_mm: fc.link_depth_mm[l.index()],
+                    });
+                }
+            }
+        }
+        out
     }
 }
 

@@ -63,6 +63,9 @@ pub struct PartTrack {
     pub source: String,
     /// Pose per frame (null where too few of its markers are seen).
     pub pose: Vec<Option<PartPose>>,
+    /// Frames whose pose was interpolated across a gap in the part's markers.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub filled_frames: Vec<usize>,
     /// RMS residual of the marker fit per frame, mm.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub marker_rms_mm: Vec<Option<f64>>,

@@ -1,11 +1,13 @@
 //! The product's pose per frame: from its markers `PART_1..n` when the scene gives their
 //! positions in the part's frame (`[part.markers]`, spec section 5), by Horn's closed-form
 //! absolute orientation on the markers seen in the frame (three or more, not collinear); else
-//! where the scene's `[part]` places it, in every frame.
+//! where the scene's `[part]` places it, in every frame. Short gaps, where too few of its
+//! markers are seen, are filled by interpolating the pose between the frames either side
+//! ([`fill_pose_gaps`]), as motion-capture software fills a marker's gap.
 
 use crate::geometry::{absolute_orientation, Point};
 use crate::mocap::trajectories::Trajectories;
-use nalgebra::Isometry3;
+use nalgebra::{Isometry3, Translation3};
 use std::collections::BTreeMap;
 
 /// The part's pose per frame (`None` where too few of its markers are seen) and the RMS
@@ -55,6 +57,33 @@ pub fn part_poses(
     (poses, rms)
 }
 
+/// Fill every run of `None` of at most `max_gap` frames that has a pose on both sides, by
+/// linear interpolation of the translation and spherical linear interpolation of the rotation
+/// between the two (a part carried by the hand moves smoothly over a fraction of a second);
+/// longer gaps and those at the ends stay `None`. Returns the frames filled.
+pub fn fill_pose_gaps(poses: &mut [Option<Isometry3<f64>>], max_gap: usize) -> Vec<usize> {
+    let mut filled = Vec::new();
+    let mut last: Option<usize> = None;
+    for f in 0..poses.len() {
+        let Some(b) = poses[f] else { continue };
+        if let Some(l) = last {
+            let gap = f - l - 1;
+            if gap > 0 && gap <= max_gap {
+                let a = poses[l].expect("known");
+                for (k, slot) in poses.iter_mut().enumerate().take(f).skip(l + 1) {
+                    let t = (k - l) as f64 / (f - l) as f64;
+                    let tr = a.translation.vector.lerp(&b.translation.vector, t);
+                    let rot = a.rotation.slerp(&b.rotation, t);
+                    *slot = Some(Isometry3::from_parts(Translation3::from(tr), rot));
+                    filled.push(k);
+                }
+            }
+        }
+        last = Some(f);
+    }
+    filled
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -99,6 +128,30 @@ mod tests {
             let d = poses[f].unwrap().to_homogeneous() - truth[f].to_homogeneous();
             assert!(d.norm() < 1e-9, "{f}");
             assert!(rms[f].unwrap() < 1e-9);
+        }
+        // The one-frame gap is filled between its neighbours: a motion linear in the translation
+        // and, about a fixed axis, in the angle, is reproduced exactly.
+        let mut gappy = poses.clone();
+        assert_eq!(fill_pose_gaps(&mut gappy, 0), Vec::<usize>::new());
+        assert_eq!(fill_pose_gaps(&mut gappy, 1), vec![3]);
+        let axis = nalgebra::Vector3::new(1.0, 2.0, -0.5).normalize();
+        let line: Vec<Option<Isometry3<f64>>> = (0..6)
+            .map(|f| {
+                Some(Isometry3::from_parts(
+                    Translation3::new(2.0 * f as f64, -1.0, 0.5 * f as f64),
+                    UnitQuaternion::from_scaled_axis(axis * (0.2 * f as f64)),
+                ))
+            })
+            .collect();
+        let mut holed = line.clone();
+        holed[2] = None;
+        holed[3] = None;
+        holed[5] = None;
+        assert_eq!(fill_pose_gaps(&mut holed, 2), vec![2, 3]);
+        assert!(holed[5].is_none(), "a gap at the end has no pose after it");
+        for f in 2..4 {
+            let d = holed[f].unwrap().to_homogeneous() - line[f].unwrap().to_homogeneous();
+            assert!(d.norm() < 1e-12, "{f}: {d}");
         }
         let fixed = Isometry3::translation(1.0, 2.0, 3.0);
         let (p, _) = part_poses(&traj, &BTreeMap::new(), &fixed);
