@@ -21,13 +21,12 @@
 
 use super::kinematics::Kinematics;
 use super::Tracked;
-use crate::anatomy::Link;
 use crate::geometry::{Point, TriMesh};
+use crate::grasp::broad::Zone;
 use crate::grasp::contact::{vertex_areas, PartShape, Probe};
 use crate::grasp::hand::{PosableHand, SkinnedHand};
 use nalgebra::Isometry3;
 use rayon::prelude::*;
-use std::collections::HashMap;
 
 /// Contact replay settings.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -54,8 +53,6 @@ pub struct FrameContacts {
     pub link_depth_mm: [f64; 17],
     /// Skin vertices in contact, ascending.
     pub skin_vertices: Vec<u32>,
-    /// Part vertices under the contact, ascending.
-    pub part_vertices: Vec<u32>,
 }
 
 impl FrameContacts {
@@ -90,88 +87,228 @@ impl ContactReplay {
     }
 }
 
-/// Part vertices in a uniform grid, for the contact map's radius search.
+/// Part vertices in a dense uniform grid (cells in one array, compressed rows), for the
+/// contact map's radius search: a few array reads per touching vertex and frame.
 struct VertexGrid {
+    origin: Point,
     cell: f64,
-    cells: HashMap<[i64; 3], Vec<u32>>,
+    dims: [i64; 3],
+    start: Vec<u32>,
+    items: Vec<u32>,
 }
 
 impl VertexGrid {
     fn new(points: &[Point], cell: f64) -> VertexGrid {
-        let mut cells: HashMap<[i64; 3], Vec<u32>> = HashMap::new();
-        for (i, p) in points.iter().enumerate() {
-            cells.entry(Self::key(p, cell)).or_default().push(i as u32);
+        let (mut lo, mut hi) = (Point::origin(), Point::origin());
+        if let Some(first) = points.first() {
+            (lo, hi) = (*first, *first);
+            for p in points {
+                lo = lo.inf(p);
+                hi = hi.sup(p);
+            }
         }
-        VertexGrid { cell, cells }
+        let dims = [0, 1, 2].map(|a| ((hi[a] - lo[a]) / cell).floor() as i64 + 1);
+        let mut g = VertexGrid {
+            origin: lo,
+            cell,
+            dims,
+            start: Vec::new(),
+            items: Vec::new(),
+        };
+        let n_cells = (dims[0] * dims[1] * dims[2]) as usize;
+        let idx: Vec<usize> = points
+            .iter()
+            .map(|p| g.index(g.key(p)).expect("inside its own bounds"))
+            .collect();
+        let mut start = vec![0u32; n_cells + 1];
+        for &c in &idx {
+            start[c + 1] += 1;
+        }
+        for c in 0..n_cells {
+            start[c + 1] += start[c];
+        }
+        let mut fill = start.clone();
+        let mut items = vec![0u32; points.len()];
+        for (v, &c) in idx.iter().enumerate() {
+            items[fill[c] as usize] = v as u32;
+            fill[c] += 1;
+        }
+        g.start = start;
+        g.items = items;
+        g
     }
 
-    fn key(p: &Point, cell: f64) -> [i64; 3] {
-        [
-            (p.x / cell).floor() as i64,
-            (p.y / cell).floor() as i64,
-            (p.z / cell).floor() as i64,
-        ]
+    fn key(&self, p: &Point) -> [i64; 3] {
+        [0, 1, 2].map(|a| ((p[a] - self.origin[a]) / self.cell).floor() as i64)
+    }
+
+    fn index(&self, k: [i64; 3]) -> Option<usize> {
+        (0..3)
+            .all(|a| (0..self.dims[a]).contains(&k[a]))
+            .then(|| ((k[0] * self.dims[1] + k[1]) * self.dims[2] + k[2]) as usize)
     }
 
     /// Vertices within `r <= cell` of `p`, appended to `out`.
     fn within(&self, points: &[Point], p: &Point, r: f64, out: &mut Vec<u32>) {
-        let k = Self::key(p, self.cell);
+        let k = self.key(p);
         for dx in -1..=1 {
             for dy in -1..=1 {
                 for dz in -1..=1 {
-                    if let Some(vs) = self.cells.get(&[k[0] + dx, k[1] + dy, k[2] + dz]) {
-                        out.extend(
-                            vs.iter()
-                                .copied()
-                                .filter(|&v| (points[v as usize] - p).norm_squared() <= r * r),
-                        );
-                    }
+                    let Some(c) = self.index([k[0] + dx, k[1] + dy, k[2] + dz]) else {
+                        continue;
+                    };
+                    let vs = &self.items[self.start[c] as usize..self.start[c + 1] as usize];
+                    out.extend(
+                        vs.iter()
+                            .copied()
+                            .filter(|&v| (points[v as usize] - p).norm_squared() <= r * r),
+                    );
                 }
             }
         }
     }
 }
 
-/// The contacts of one posed skin (`points`, in the part's frame) with `part`.
-fn frame_contacts(
-    part: &PartShape,
-    grid: &VertexGrid,
+/// Per link, a bound on where linear blend skinning can put the vertices it dominates: the
+/// rest sphere about them and the links their weights blend.
+struct LinkBound {
+    centre: Point,
     radius: f64,
-    points: &[Point],
-    links: &[usize],
-    areas: &[f64],
-    opts: &ReplayOptions,
-) -> FrameContacts {
-    let mut area = [0.0; 17];
-    let mut depth = [0.0f64; 17];
-    let mut skin = Vec::new();
-    let mut under = Vec::new();
-    for (i, p) in points.iter().enumerate() {
-        let hit = match part.probe(p, opts.tolerance_mm) {
-            Probe::Far => None,
-            Probe::Hit(d, q, _) => (d <= opts.tolerance_mm).then_some((d, q)),
-            Probe::Deep => part.tree.closest_point(p).map(|c| (-c.distance, c.point)),
-        };
-        let Some((d, q)) = hit else { continue };
-        let l = links[i];
-        area[l] += areas[i];
-        depth[l] = depth[l].max(-d);
-        skin.push(i as u32);
-        grid.within(&part.mesh.vertices, &q, radius, &mut under);
+    blends: Vec<usize>,
+}
+
+impl LinkBound {
+    fn of(hand: &SkinnedHand) -> Vec<LinkBound> {
+        let rest = &hand.rest_mesh().vertices;
+        hand.link_vertices()
+            .iter()
+            .enumerate()
+            .map(|(l, vs)| {
+                if vs.is_empty() {
+                    return LinkBound {
+                        centre: Point::origin(),
+                        radius: 0.0,
+                        blends: Vec::new(),
+                    };
+                }
+                let c = vs.iter().fold(nalgebra::Vector3::zeros(), |a, &i| a + rest[i].coords)
+                    / vs.len() as f64;
+                let centre = Point::from(c);
+                let radius = vs.iter().map(|&i| (rest[i] - centre).norm()).fold(0.0, f64::max);
+                let mut blends: Vec<usize> = vs
+                    .iter()
+                    .flat_map(|&i| hand.hand.weights[i].iter().map(|&(k, _)| k))
+                    .filter(|&k| k != l)
+                    .collect();
+                blends.sort_unstable();
+                blends.dedup();
+                LinkBound {
+                    centre,
+                    radius,
+                    blends,
+                }
+            })
+            .collect()
     }
-    under.sort_unstable();
-    under.dedup();
-    FrameContacts {
-        link_area_mm2: area,
-        link_depth_mm: depth,
-        skin_vertices: skin,
-        part_vertices: under,
+
+    /// Whether some vertex of the link may lie within `reach` of the box `lo..hi` under the
+    /// link transforms `t` (`l` the link). A blended vertex `Σ w_k T_k v` lies within
+    /// `max_k |T_k v - T_l v|` of `T_l v`, and for `v` in the rest sphere that is at most
+    /// `|T_k c - T_l c| + ‖R_k - R_l‖ r`.
+    fn may_reach(&self, l: usize, t: &[Isometry3<f64>], lo: &Point, hi: &Point, reach: f64) -> bool {
+        let tl = t[l] * self.centre;
+        let spread = self
+            .blends
+            .iter()
+            .map(|&k| {
+                let dr = t[k].rotation.to_rotation_matrix().matrix()
+                    - t[l].rotation.to_rotation_matrix().matrix();
+                (t[k] * self.centre - tl).norm() + dr.norm() * self.radius
+            })
+            .fold(0.0, f64::max);
+        let gap = (0..3)
+            .map(|a| (lo[a] - tl[a]).max(tl[a] - hi[a]).max(0.0).powi(2))
+            .sum::<f64>()
+            .sqrt();
+        gap <= self.radius + spread + reach
+    }
+}
+
+/// What a skin vertex last learnt exactly about the part: where it was, its signed distance
+/// there (negative inside) and its projection on the part.
+#[derive(Clone, Copy, Debug)]
+struct Known {
+    at: Point,
+    signed: f64,
+    projection: Point,
+}
+
+/// A vertex in one frame, as far as the bounds allow without a query.
+#[derive(Clone, Copy, Debug)]
+enum Status {
+    /// Farther than the tolerance outside.
+    Apart,
+    /// In contact; the signed distance lies within `signed ± slack` (`slack` 0: exact).
+    Touching {
+        signed: f64,
+        slack: f64,
+        projection: Point,
+    },
+}
+
+/// The exact signed distance and projection of `p` (unsigned on an open part).
+fn exact(part: &PartShape, p: &Point) -> Option<Known> {
+    match part.probe(p, f64::INFINITY) {
+        Probe::Hit(d, q, _) => Some(Known {
+            at: *p,
+            signed: d,
+            projection: q,
+        }),
+        _ => None,
+    }
+}
+
+/// Classify the vertex at `p` given what it knew, querying the part only when the bounds
+/// cannot decide (the signed distance is 1-Lipschitz: it changes by at most the distance
+/// moved).
+fn classify(part: &PartShape, p: &Point, known: &mut Option<Known>, tol: f64) -> Status {
+    if part.grid.zone(p) == Zone::Outside && part.grid.band >= tol {
+        return Status::Apart;
+    }
+    if let Some(k) = known {
+        let moved = (p - k.at).norm();
+        if k.signed - moved > tol {
+            return Status::Apart;
+        }
+        if k.signed + moved <= tol {
+            return Status::Touching {
+                signed: k.signed,
+                slack: moved,
+                projection: k.projection + (p - k.at),
+            };
+        }
+    }
+    *known = exact(part, p);
+    match known {
+        Some(k) if k.signed <= tol => Status::Touching {
+            signed: k.signed,
+            slack: 0.0,
+            projection: k.projection,
+        },
+        _ => Status::Apart,
     }
 }
 
 /// Contacts of `hand` (the individual hand of the model `kin` was read from) with `part` (in
 /// its own frame) over the `tracked` trial, whose `part` holds the part's pose per frame (part
-/// frame -> lab). Frames run in parallel; the result does not depend on the thread count.
+/// frame -> lab).
+///
+/// Frames run in order and each vertex remembers its last exact query: a vertex is queried
+/// again only when the distance it has moved since could have carried it across the
+/// tolerance, and the deepest penetration of a link is found by branch and bound over its
+/// vertices' depth intervals, querying only those that could still be deepest. The contact
+/// areas and depths are exactly those of querying every vertex in every frame; a contact
+/// map's projection is the last exact one moved with the vertex. Vertices run in parallel.
 pub fn replay_contacts(
     hand: &SkinnedHand,
     kin: &Kinematics,
@@ -185,34 +322,108 @@ pub fn replay_contacts(
     let links = hand.vertex_link();
     let radius = mean_edge_length(skin).max(1e-3);
     let grid = VertexGrid::new(&part.mesh.vertices, radius);
-    let part_pose = |f: usize| -> Option<Isometry3<f64>> {
-        tracked.part.as_ref().and_then(|(poses, _)| poses[f])
-    };
-    let frames: Vec<Option<FrameContacts>> = (0..n)
-        .into_par_iter()
-        .map_init(Vec::new, |posed, f| {
-            let state = tracked.frames[f].state.as_ref()?;
-            let to_part = part_pose(f)?.inverse();
-            let t = kin.evaluate(state);
-            let transforms: Vec<Isometry3<f64>> =
-                t.links.iter().map(|l| to_part * l).collect();
-            hand.pose_all(&transforms, posed);
-            Some(frame_contacts(
-                part, &grid, radius, posed, links, &areas, opts,
-            ))
-        })
-        .collect();
+    let tol = opts.tolerance_mm;
+    let mut known: Vec<Option<Known>> = vec![None; skin.n_vertices()];
+    let bounds = LinkBound::of(hand);
+    let mut posed = Vec::new();
+    let mut link_posed = Vec::new();
+    let mut near: Vec<usize> = Vec::new();
+    let mut status: Vec<(Status, Option<Known>)> = Vec::new();
+    let mut part_stamp = vec![usize::MAX; part.mesh.n_vertices()];
     let mut skin_count = vec![0u32; skin.n_vertices()];
     let mut part_count = vec![0u32; part.mesh.n_vertices()];
-    for fc in frames.iter().flatten() {
-        for &v in &fc.skin_vertices {
+    let mut frames = Vec::with_capacity(n);
+    for f in 0..n {
+        let pose = tracked.part.as_ref().and_then(|(poses, _)| poses[f]);
+        let (Some(state), Some(pose)) = (tracked.frames[f].state.as_ref(), pose) else {
+            frames.push(None);
+            continue;
+        };
+        let to_part = pose.inverse();
+        let t = kin.evaluate(state);
+        let transforms: Vec<Isometry3<f64>> = t.links.iter().map(|l| to_part * l).collect();
+        // Only the links that may come within the tolerance of the part's box are posed and
+        // probed; the others' vertices are apart, and keep what they knew.
+        near.clear();
+        posed.clear();
+        for (l, b) in bounds.iter().enumerate() {
+            if !hand.link_vertices()[l].is_empty()
+                && b.may_reach(l, &transforms, &part.lo, &part.hi, tol)
+            {
+                hand.pose_link(l, &transforms, &mut link_posed);
+                near.extend_from_slice(&hand.link_vertices()[l]);
+                posed.extend_from_slice(&link_posed);
+            }
+        }
+        let known_ref = &known;
+        near.par_iter()
+            .zip(posed.par_iter())
+            .with_min_len(1024)
+            .map(|(&i, p)| {
+                let mut k = known_ref[i];
+                let st = classify(part, p, &mut k, tol);
+                (st, k)
+            })
+            .collect_into_vec(&mut status);
+        for (&i, (_, k)) in near.iter().zip(&status) {
+            known[i] = *k;
+        }
+
+        let mut area = [0.0; 17];
+        let mut depth = [0.0f64; 17];
+        let mut skin_touch = Vec::new();
+        let mut under = Vec::new();
+        // Per link, the vertices whose depth is not known exactly: (upper bound, vertex).
+        let mut open: Vec<Vec<(f64, usize)>> = vec![Vec::new(); 17];
+        for (j, (st, _)) in status.iter().enumerate() {
+            let i = near[j];
+            let Status::Touching {
+                signed,
+                slack,
+                projection,
+            } = *st
+            else {
+                continue;
+            };
+            let l = links[i];
+            area[l] += areas[i];
+            depth[l] = depth[l].max(-(signed + slack));
+            if slack > 0.0 && -(signed - slack) > depth[l] {
+                open[l].push((-(signed - slack), j));
+            }
+            skin_touch.push(i as u32);
+            grid.within(&part.mesh.vertices, &projection, radius, &mut under);
+        }
+        for (l, cands) in open.iter_mut().enumerate() {
+            cands.sort_by(|a, b| b.0.total_cmp(&a.0));
+            for &(upper, j) in cands.iter() {
+                if upper <= depth[l] {
+                    break;
+                }
+                let i = near[j];
+                known[i] = exact(part, &posed[j]);
+                if let Some(k) = known[i] {
+                    depth[l] = depth[l].max(-k.signed);
+                }
+            }
+        }
+        skin_touch.sort_unstable();
+        for &v in &skin_touch {
             skin_count[v as usize] += 1;
         }
-        for &v in &fc.part_vertices {
-            part_count[v as usize] += 1;
+        // Each part vertex once per frame, however many projections fall near it.
+        for &v in &under {
+            if part_stamp[v as usize] != f {
+                part_stamp[v as usize] = f;
+                part_count[v as usize] += 1;
+            }
         }
+        frames.push(Some(FrameContacts {
+            link_area_mm2: area,
+            link_depth_mm: depth.map(|d| d.max(0.0)),
+            skin_vertices: skin_touch,
+        }));
     }
-    debug_assert_eq!(Link::ALL.len(), 17);
     ContactReplay {
         frames,
         skin_count,
@@ -229,4 +440,135 @@ fn mean_edge_length(mesh: &TriMesh) -> f64 {
         }
     }
     s / (3 * mesh.faces.len()).max(1) as f64
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::anatomy::{Link, Side};
+    use crate::track::fixture::grasp_states;
+    use crate::track::{Attachment, FrameSolution, HandState};
+    use nalgebra::{Translation3, UnitQuaternion, Vector3};
+
+    /// Top face of the slab part, in its own frame: z = 0 (the slab is 1000 x 1000 x 400 mm
+    /// below it, so near its top's centre the signed distance is z).
+    fn slab() -> PartShape {
+        let m = crate::geometry::mesh::tests::cuboid(1000.0, 1000.0, 400.0)
+            .transformed(&Isometry3::translation(-500.0, -500.0, -400.0));
+        PartShape::with_band(m, 1.0).unwrap().0
+    }
+
+    fn solution(state: Option<HandState>) -> FrameSolution {
+        FrameSolution {
+            state,
+            residual_mm: Vec::new(),
+            rejected: Vec::new(),
+            held: Vec::new(),
+            iterations: 0,
+        }
+    }
+
+    /// The template hand closing while a slab's top cuts through its palm (the slab moves with
+    /// the palm, turned so the cut is oblique), away for a stretch and back: every frame's
+    /// areas and depths are those of the closed form, the signed distance to the top face
+    /// being the height above it, computed on the skin posed afresh.
+    #[test]
+    fn replayed_contacts_equal_the_closed_form_on_a_slab() {
+        let hand = SkinnedHand::template(Side::Right).unwrap();
+        let kin = Kinematics::full(hand.skeleton().clone());
+        let start = Isometry3::from_parts(
+            Translation3::new(150.0, -40.0, 220.0),
+            UnitQuaternion::from_euler_angles(0.2, 0.9, -0.4),
+        );
+        let n = 240;
+        let states = grasp_states(n, 100.0, start);
+        let rest = &hand.rest_mesh().vertices;
+        let palm: Vec<usize> = hand.link_vertices()[Link::Palm.index()].clone();
+        let centre = palm.iter().fold(Vector3::zeros(), |a, &i| a + rest[i].coords)
+            / palm.len() as f64;
+        // Part frame -> rest frame: the top face through the palm's centroid, tilted.
+        let cut = Isometry3::from_parts(
+            Translation3::from(centre),
+            UnitQuaternion::from_euler_angles(0.3, -0.5, 0.2),
+        );
+        let poses: Vec<Option<Isometry3<f64>>> = (0..n)
+            .map(|f| {
+                let away = if (100..130).contains(&f) { 600.0 } else { 0.0 };
+                (f != 50).then(|| states[f].palm * cut * Isometry3::translation(0.0, 0.0, -away))
+            })
+            .collect();
+        let tracked = Tracked {
+            attachment: Attachment {
+                markers: Vec::new(),
+            },
+            frames: (0..n)
+                .map(|f| solution((f != 70).then(|| states[f].clone())))
+                .collect(),
+            part: Some((poses.clone(), vec![None; n])),
+            part_filled: Vec::new(),
+            rate: 100.0,
+            warnings: Vec::new(),
+        };
+        let part = slab();
+        let opts = ReplayOptions::default();
+        let replay = replay_contacts(&hand, &kin, &tracked, &part, &opts);
+        let areas = vertex_areas(hand.rest_mesh());
+        let links = hand.vertex_link();
+        let mut posed = Vec::new();
+        let mut touched_frames = 0;
+        for f in 0..n {
+            let got = &replay.frames[f];
+            let (Some(pose), false) = (poses[f], f == 70) else {
+                assert!(got.is_none(), "frame {f}: hand or part unknown");
+                continue;
+            };
+            let got = got.as_ref().expect("both known");
+            let t = kin.evaluate(&states[f]);
+            let tr: Vec<Isometry3<f64>> = t.links.iter().map(|l| pose.inverse() * l).collect();
+            hand.pose_all(&tr, &mut posed);
+            let mut area = [0.0; 17];
+            let mut depth = [0.0f64; 17];
+            let mut verts = Vec::new();
+            for (i, p) in posed.iter().enumerate() {
+                if p.z <= opts.tolerance_mm {
+                    area[links[i]] += areas[i];
+                    depth[links[i]] = depth[links[i]].max(-p.z);
+                    verts.push(i as u32);
+                }
+            }
+            assert!(got.skin_vertices == verts, "frame {f}: the vertices in contact differ");
+            for l in 0..17 {
+                assert!((got.link_area_mm2[l] - area[l]).abs() < 1e-9, "frame {f} link {l}");
+                assert!(
+                    (got.link_depth_mm[l] - depth[l]).abs() < 1e-9,
+                    "frame {f} link {l}: {} against {}",
+                    got.link_depth_mm[l],
+                    depth[l]
+                );
+            }
+            if (100..130).contains(&f) {
+                assert!(verts.is_empty(), "frame {f}: the slab is away");
+            } else {
+                assert!(got.total_area_mm2() > 1000.0, "frame {f}: the palm is cut");
+                touched_frames += 1;
+            }
+        }
+        // The map counts each skin vertex's frames in contact.
+        let count_of = |v: usize| {
+            replay
+                .frames
+                .iter()
+                .flatten()
+                .filter(|fc| fc.skin_vertices.binary_search(&(v as u32)).is_ok())
+                .count() as u32
+        };
+        for v in (0..rest.len()).step_by(97) {
+            assert_eq!(replay.skin_count[v], count_of(v), "vertex {v}");
+        }
+        // The slab's only vertices are its corners, hundreds of millimetres from any contact.
+        assert!(touched_frames > 150);
+        assert_eq!(replay.part_count, vec![0; 8]);
+        let records = replay.records();
+        assert!(records.iter().all(|r| r.area_mm2 > 0.0 && r.frame != 70 && r.frame != 50));
+    }
 }
