@@ -1,16 +1,20 @@
 //! `ergohand track SUBJECT_DIR --model OUT --motion NAME [--scene SCENE.toml] --out DIR`: a
 //! motion trial of the subject replayed with its reconstructed link model, written as
-//! `DIR/motion.json` (spec section 5).
+//! `DIR/motion.json` (spec section 5) and animated as `DIR/motion.glb`.
 
 use super::Voice;
 use crate::error::{Error, Result};
+use crate::grasp::read_part;
+use crate::io::gltf::write_glb;
 use crate::io::output_paths::{check_output_dir, Inputs};
+use crate::io::Units;
 use crate::mocap::subject::{Subject, TrialKind};
+use crate::pose::{IndividualHand, WeightMethod};
 use crate::track::{load_link_model, track_trial, IkOptions, PartSetup};
 use std::path::{Path, PathBuf};
 
 /// The files `track` writes into its output folder.
-pub const OUTPUT_FILES: [&str; 1] = ["motion.json"];
+pub const OUTPUT_FILES: [&str; 2] = ["motion.json", "motion.glb"];
 
 /// What [`track`] did.
 #[derive(Clone, Debug)]
@@ -28,7 +32,9 @@ pub struct TrackSummary {
 /// Track the motion `motion` of the subject folder `subject_dir` with the link model of the
 /// `reconstruct` folder `model_dir` (its markers attached from the subject's static reference
 /// trial), the part of `scene` (if given) followed by its markers or standing where the scene
-/// places it, and write `out/motion.json` atomically.
+/// places it, and write `out/motion.json` and `out/motion.glb` (the skinned hand and the part
+/// animated over the trial) atomically. Without `skin.obj` in the model folder the GLB is not
+/// written (a warning names the file).
 ///
 /// Errors, one line naming the file and the field or marker: no `subject.toml`, no such
 /// motion in `[motions]`, no `link_model.json` in the model folder or one of the other hand, a
@@ -78,16 +84,11 @@ pub(crate) fn track_job(
     }
     let static_trial = subject.load_trial(TrialKind::Reference)?;
     let trial = subject.load_motion(motion)?;
-    let part = match scene {
-        None => None,
-        Some(p) => {
-            let s = crate::grasp::scene::read_scene(p)?;
-            Some(PartSetup {
-                markers: s.part_markers,
-                placed: s.part_pose,
-            })
-        }
-    };
+    let scene = scene.map(crate::grasp::scene::read_scene).transpose()?;
+    let part = scene.as_ref().map(|s| PartSetup {
+        markers: s.part_markers.clone(),
+        placed: s.part_pose,
+    });
     let tracked = track_trial(
         &kin,
         &static_trial,
@@ -103,11 +104,34 @@ pub(crate) fn track_job(
             out.join("motion.json").display()
         ));
     }
+    // The animated hand needs the reconstructed skin; without it motion.json still stands.
+    let glb = out.join("motion.glb");
+    let skin = model_dir.join("skin.obj");
+    let animated = if skin.is_file() {
+        let hand = IndividualHand::load(model_dir, WeightMethod::Template)?;
+        let part_mesh = match &scene {
+            Some(s) => Some(read_part(&s.part_file, s.part_units)?),
+            None => None,
+        };
+        Some(tracked.animated_scene(&kin, &hand, part_mesh.as_ref())?)
+    } else {
+        warnings.push(format!(
+            "{}: not found, so {} is not written; re-run reconstruct for the skin",
+            skin.display(),
+            glb.display()
+        ));
+        None
+    };
     let mut file = tracked.motion_file(&kin, Vec::new());
     file.warnings = warnings.clone();
     std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
     let written = out.join("motion.json");
     file.write(&written)?;
+    match &animated {
+        Some(a) => write_glb(&glb, a, Units::Metres)?,
+        None if glb.is_file() => std::fs::remove_file(&glb).map_err(|e| Error::io(&glb, e))?,
+        None => {}
+    }
     for w in &warnings {
         log::log!(voice.warn(), "{w}");
     }
