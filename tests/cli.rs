@@ -341,6 +341,102 @@ fn track_the_grasp_trial(subj: &Path, model: &Path, out: &Path) {
         let d = ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt();
         assert!(d < 1e-3, "frame {f}: part {d} mm off");
     }
+
+    // Contacts: none while the hand is still far in the reach; in the hold, the thumb on the
+    // bottle; in the lift the hand carries the bottle rigidly, so every frame's contact area
+    // equals the hold's (the same relative pose, tracked afresh in each frame).
+    let phase = |name: &str| -> (usize, usize) {
+        let p = truth["phases"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .find(|p| p["name"] == name)
+            .unwrap();
+        (
+            p["first"].as_u64().unwrap() as usize,
+            p["last"].as_u64().unwrap() as usize,
+        )
+    };
+    let mut area = vec![0.0; frames];
+    let mut thumb = vec![false; frames];
+    for c in got["contacts"].as_array().unwrap() {
+        let f = c["frame"].as_u64().unwrap() as usize;
+        area[f] += c["area_mm2"].as_f64().unwrap();
+        thumb[f] |= c["link"].as_str().unwrap().starts_with("T_");
+    }
+    let (reach, _) = phase("reach");
+    assert!(area[reach..reach + 40].iter().all(|&a| a == 0.0));
+    let (h0, h1) = phase("hold");
+    let (l0, l1) = phase("lift");
+    let held = area[h0];
+    assert!(
+        held > 100.0 && (h0..=h1).all(|f| thumb[f]),
+        "hold area {held} mm²"
+    );
+    for f in (h0..=h1).chain(l0..=l1) {
+        assert!(
+            (area[f] - held).abs() <= 0.01 * held,
+            "frame {f}: {} mm² against {held} at the hold's start",
+            area[f]
+        );
+    }
+
+    // motion.glb: the skinned hand and the bottle, one keyframe per frame (all solved) at
+    // frame / rate, the bottle's translation keyframes where motion.json puts it.
+    let glb = ergohand::io::gltf::read_gltf(&out.join("motion.glb"), Units::Metres).unwrap();
+    assert_eq!(glb.meshes.len(), 2);
+    assert!(glb.meshes[0].skin.is_some() && glb.meshes[1].skin.is_none());
+    assert_eq!(glb.animations.len(), 1);
+    let rate = got["rate"].as_f64().unwrap();
+    let channels = &glb.animations[0].channels;
+    assert_eq!(channels.len(), 17 + 1 + 2);
+    for ch in channels {
+        assert_eq!(ch.times.len(), frames);
+        assert!((ch.times[frames - 1] - (frames - 1) as f64 / rate).abs() < 1e-6);
+    }
+    let part_t = channels
+        .iter()
+        .find_map(|c| match (&c.target, &c.values) {
+            (
+                ergohand::io::gltf::AnimationTarget::Mesh(1),
+                ergohand::io::gltf::Keyframes::Translation(v),
+            ) => Some(v),
+            _ => None,
+        })
+        .unwrap();
+    for f in (0..frames).step_by(37) {
+        let a = point(&part[f]["translation_mm"]);
+        let d = ((a[0] - part_t[f].x).powi(2)
+            + (a[1] - part_t[f].y).powi(2)
+            + (a[2] - part_t[f].z).powi(2))
+        .sqrt();
+        assert!(d < 1e-3, "frame {f}: glb part {d} mm from motion.json");
+    }
+
+    // A model folder without skin.obj: motion.json still, no motion.glb, a warning naming it.
+    let bare = out.with_file_name("BARE_MODEL");
+    std::fs::create_dir_all(&bare).unwrap();
+    std::fs::copy(model.join("link_model.json"), bare.join("link_model.json")).unwrap();
+    let out2 = out.with_file_name("TRACK_BARE");
+    let r = ergohand(&[
+        "track",
+        s,
+        "--model",
+        bare.to_str().unwrap(),
+        "--motion",
+        "grasp_bottle",
+        "--out",
+        out2.to_str().unwrap(),
+    ]);
+    assert!(r.status.success(), "{}", stderr(&r));
+    assert!(out2.join("motion.json").is_file() && !out2.join("motion.glb").exists());
+    let warned = stderr(&r);
+    assert!(
+        warned
+            .lines()
+            .any(|l| l.contains("skin.obj") && l.contains("motion.glb")),
+        "{warned}"
+    );
 }
 
 #[test]

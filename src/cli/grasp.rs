@@ -37,6 +37,7 @@ pub(crate) fn write_outputs(o: &GraspOutcome, out: &Path) -> Result<()> {
                 skin: None,
             },
         ],
+        animations: Vec::new(),
     };
     crate::io::gltf::write_glb(&out.join("grasp.glb"), &scene, Units::Metres)?;
     // Picture: hand and part together, seen from the palm side of the part.

@@ -1,21 +1,24 @@
 //! `ergohand track SUBJECT_DIR --model OUT --motion NAME [--scene SCENE.toml] --out DIR`: a
 //! motion trial of the subject replayed with its reconstructed link model, written as
-//! `DIR/motion.json` (spec section 5).
+//! `DIR/motion.json` (spec section 5) and animated as `DIR/motion.glb`.
 
 use super::Voice;
 use crate::error::{Error, Result};
-use crate::io::output_paths::{check_output_dir, Inputs};
-use crate::mocap::subject::{Subject, TrialKind};
+use crate::grasp::contact::PartShape;
 use crate::grasp::hand::SkinnedHand;
 use crate::grasp::scene::Scene;
+use crate::io::gltf::write_glb;
+use crate::io::output_paths::{check_output_dir, Inputs};
+use crate::io::Units;
+use crate::mocap::subject::{Subject, TrialKind};
 use crate::track::{
-    load_link_model, replay_contacts, track_trial, ContactReplay, IkOptions, Kinematics,
-    PartSetup, ReplayOptions, Tracked,
+    load_link_model, replay_contacts, track_trial, ContactReplay, IkOptions, PartSetup,
+    ReplayOptions, Tracked,
 };
 use std::path::{Path, PathBuf};
 
 /// The files `track` writes into its output folder.
-pub const OUTPUT_FILES: [&str; 1] = ["motion.json"];
+pub const OUTPUT_FILES: [&str; 2] = ["motion.json", "motion.glb"];
 
 /// What [`track`] did.
 #[derive(Clone, Debug)]
@@ -33,7 +36,9 @@ pub struct TrackSummary {
 /// Track the motion `motion` of the subject folder `subject_dir` with the link model of the
 /// `reconstruct` folder `model_dir` (its markers attached from the subject's static reference
 /// trial), the part of `scene` (if given) followed by its markers or standing where the scene
-/// places it, and write `out/motion.json` atomically.
+/// places it, and write `out/motion.json` and `out/motion.glb` (the skinned hand and the part
+/// animated over the trial) atomically. Without `skin.obj` in the model folder the GLB is not
+/// written (a warning names the file).
 ///
 /// Errors, one line naming the file and the field or marker: no `subject.toml`, no such
 /// motion in `[motions]`, no `link_model.json` in the model folder or one of the other hand, a
@@ -96,16 +101,58 @@ pub(crate) fn track_job(
         &IkOptions::default(),
     )?;
     let mut warnings = tracked.warnings.clone();
-    let replay = match &scene {
-        Some(scene) => contacts(model_dir, scene, &kin, &tracked, &mut warnings)?,
+    // The skin poses for the animation and the contacts; without it motion.json still stands.
+    let glb = out.join("motion.glb");
+    let skin = model_dir.join("skin.obj");
+    let hand = if skin.is_file() {
+        Some(SkinnedHand::load(model_dir)?)
+    } else {
+        warnings.push(format!(
+            "{}: not found, so {} is not written and contacts are not computed; re-run \
+             reconstruct into the --model folder",
+            skin.display(),
+            glb.display()
+        ));
+        None
+    };
+    let replay_opts = ReplayOptions::default();
+    let part_shape = match &scene {
+        Some(s) => {
+            // The part in its own frame, where the markers' positions are given.
+            let (p, w) = crate::grasp::scene_part_with_band(
+                s,
+                &nalgebra::Isometry3::identity(),
+                replay_opts.tolerance_mm,
+            )?;
+            warnings.extend(w);
+            Some(p)
+        }
         None => None,
     };
-    let records = replay.as_ref().map(ContactReplay::records).unwrap_or_default();
+    let replay = match (&hand, &part_shape, &scene) {
+        (Some(h), Some(p), Some(s)) => Some(contacts(h, p, s, &kin, &tracked, &mut warnings)),
+        _ => None,
+    };
+    let animated = match &hand {
+        Some(h) => {
+            Some(tracked.animated_scene(&kin, &h.hand, part_shape.as_ref().map(|p| &p.mesh))?)
+        }
+        None => None,
+    };
+    let records = replay
+        .as_ref()
+        .map(ContactReplay::records)
+        .unwrap_or_default();
     let mut file = tracked.motion_file(&kin, records);
     file.warnings = warnings.clone();
     std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
     let written = out.join("motion.json");
     file.write(&written)?;
+    match &animated {
+        Some(a) => write_glb(&glb, a, Units::Metres)?,
+        None if glb.is_file() => std::fs::remove_file(&glb).map_err(|e| Error::io(&glb, e))?,
+        None => {}
+    }
     for w in &warnings {
         log::log!(voice.warn(), "{w}");
     }
@@ -126,33 +173,17 @@ pub(crate) fn track_job(
     })
 }
 
-/// The contacts of the model's skin with the scene's part over `tracked`, or `None` (with a
-/// warning) when the model folder has no skin to pose.
+/// The contacts of the model's skin with the scene's part over `tracked`, with a warning
+/// naming the solved frames that have none for want of the part's pose.
 fn contacts(
-    model_dir: &Path,
+    hand: &SkinnedHand,
+    part: &PartShape,
     scene: &Scene,
-    kin: &Kinematics,
+    kin: &crate::track::Kinematics,
     tracked: &Tracked,
     warnings: &mut Vec<String>,
-) -> Result<Option<ContactReplay>> {
-    let skin = model_dir.join("skin.obj");
-    if !skin.exists() {
-        warnings.push(format!(
-            "{}: file not found, so contacts are not computed ('contacts' is empty); re-run \
-             reconstruct into the --model folder",
-            skin.display()
-        ));
-        return Ok(None);
-    }
-    let hand = SkinnedHand::load(model_dir)?;
-    let (part, part_warnings) =
-        crate::grasp::scene_part_with_band(
-        scene,
-        &nalgebra::Isometry3::identity(),
-        ReplayOptions::default().tolerance_mm,
-    )?;
-    warnings.extend(part_warnings);
-    let replay = replay_contacts(&hand, kin, tracked, &part, &ReplayOptions::default());
+) -> ContactReplay {
+    let replay = replay_contacts(hand, kin, tracked, part, &ReplayOptions::default());
     let missing = replay.missing(tracked);
     if !missing.is_empty() {
         warnings.push(format!(
@@ -163,5 +194,5 @@ fn contacts(
             crate::track::ranges(&missing)
         ));
     }
-    Ok(Some(replay))
+    replay
 }

@@ -191,10 +191,15 @@ impl LinkBound {
                         blends: Vec::new(),
                     };
                 }
-                let c = vs.iter().fold(nalgebra::Vector3::zeros(), |a, &i| a + rest[i].coords)
+                let c = vs
+                    .iter()
+                    .fold(nalgebra::Vector3::zeros(), |a, &i| a + rest[i].coords)
                     / vs.len() as f64;
                 let centre = Point::from(c);
-                let radius = vs.iter().map(|&i| (rest[i] - centre).norm()).fold(0.0, f64::max);
+                let radius = vs
+                    .iter()
+                    .map(|&i| (rest[i] - centre).norm())
+                    .fold(0.0, f64::max);
                 let mut blends: Vec<usize> = vs
                     .iter()
                     .flat_map(|&i| hand.hand.weights[i].iter().map(|&(k, _)| k))
@@ -215,7 +220,14 @@ impl LinkBound {
     /// link transforms `t` (`l` the link). A blended vertex `Σ w_k T_k v` lies within
     /// `max_k |T_k v - T_l v|` of `T_l v`, and for `v` in the rest sphere that is at most
     /// `|T_k c - T_l c| + ‖R_k - R_l‖ r`.
-    fn may_reach(&self, l: usize, t: &[Isometry3<f64>], lo: &Point, hi: &Point, reach: f64) -> bool {
+    fn may_reach(
+        &self,
+        l: usize,
+        t: &[Isometry3<f64>],
+        lo: &Point,
+        hi: &Point,
+        reach: f64,
+    ) -> bool {
         let tl = t[l] * self.centre;
         let spread = self
             .blends
@@ -484,7 +496,9 @@ mod tests {
         let states = grasp_states(n, 100.0, start);
         let rest = &hand.rest_mesh().vertices;
         let palm: Vec<usize> = hand.link_vertices()[Link::Palm.index()].clone();
-        let centre = palm.iter().fold(Vector3::zeros(), |a, &i| a + rest[i].coords)
+        let centre = palm
+            .iter()
+            .fold(Vector3::zeros(), |a, &i| a + rest[i].coords)
             / palm.len() as f64;
         // Part frame -> rest frame: the top face through the palm's centroid, tilted.
         let cut = Isometry3::from_parts(
@@ -536,9 +550,15 @@ mod tests {
                     verts.push(i as u32);
                 }
             }
-            assert!(got.skin_vertices == verts, "frame {f}: the vertices in contact differ");
+            assert!(
+                got.skin_vertices == verts,
+                "frame {f}: the vertices in contact differ"
+            );
             for l in 0..17 {
-                assert!((got.link_area_mm2[l] - area[l]).abs() < 1e-9, "frame {f} link {l}");
+                assert!(
+                    (got.link_area_mm2[l] - area[l]).abs() < 1e-9,
+                    "frame {f} link {l}"
+                );
                 assert!(
                     (got.link_depth_mm[l] - depth[l]).abs() < 1e-9,
                     "frame {f} link {l}: {} against {}",
@@ -569,6 +589,8 @@ mod tests {
         assert!(touched_frames > 150);
         assert_eq!(replay.part_count, vec![0; 8]);
         let records = replay.records();
-        assert!(records.iter().all(|r| r.area_mm2 > 0.0 && r.frame != 70 && r.frame != 50));
+        assert!(records
+            .iter()
+            .all(|r| r.area_mm2 > 0.0 && r.frame != 70 && r.frame != 50));
     }
 }

@@ -32,8 +32,12 @@ pub use part::{fill_pose_gaps, part_poses, PartPoses};
 
 use crate::anatomy::{Joint, Link};
 use crate::error::{Error, Result};
-use crate::geometry::Point;
+use crate::geometry::{Point, TriMesh};
+use crate::io::gltf::Scene;
 use crate::mocap::trajectories::Trajectories;
+use crate::pose::gltf::{animated_scene, MovingPart};
+use crate::pose::IndividualHand;
+use crate::skeleton::Pose;
 use nalgebra::Isometry3;
 use std::collections::BTreeMap;
 
@@ -204,6 +208,43 @@ pub fn track_trial(
 }
 
 impl Tracked {
+    /// The hand's pose per frame for skinning ([`Kinematics::pose`]), `None` where unsolved.
+    pub fn poses(&self, kin: &Kinematics) -> Vec<Option<Pose>> {
+        self.frames
+            .iter()
+            .map(|f| f.state.as_ref().map(|s| kin.pose(s)))
+            .collect()
+    }
+
+    /// The trial as an animated glTF scene ([`animated_scene`]): `hand`'s skin (in the static
+    /// trial's lab frame, as the link model `kin`) moved by the pose of every solved frame,
+    /// and, when the part was tracked and `part_mesh` (in the part's own frame) is given, the
+    /// part moved by its pose per frame.
+    pub fn animated_scene(
+        &self,
+        kin: &Kinematics,
+        hand: &IndividualHand,
+        part_mesh: Option<&TriMesh>,
+    ) -> Result<Scene> {
+        let part = match (part_mesh, &self.part) {
+            (Some(mesh), Some((poses, _))) => Some(MovingPart {
+                name: "part",
+                mesh,
+                poses,
+            }),
+            _ => None,
+        };
+        animated_scene(
+            "hand",
+            &hand.skin,
+            &hand.weights,
+            &hand.skeleton,
+            &self.poses(kin),
+            self.rate,
+            part,
+        )
+    }
+
     /// The `motion.json` document (contacts as given).
     pub fn motion_file(&self, kin: &Kinematics, contacts: Vec<ContactRecord>) -> MotionFile {
         let n = self.frames.len();

@@ -279,6 +279,7 @@ pub fn write_error_map_glb(path: &Path, skin: &TriMesh, values: &[f64], top: f64
             colors: Some(colours.into_iter().map(srgb_to_linear).collect()),
             skin: None,
         }],
+        animations: Vec::new(),
     };
     write_glb(path, &scene, Units::Metres)
 }

@@ -42,7 +42,17 @@
 //! A single-buffer GLB that the Khronos glTF-Validator accepts without errors: one root node per
 //! [`SceneMesh`], one shared PBR material, `u32` indices, `f32` attributes, and for a skin its
 //! joint nodes, `inverseBindMatrices`, `JOINTS_0` (`u16`) and `WEIGHTS_0` (`f32`).
+//!
+//! # Animations (spec 3.11 "Animations")
+//! A [`Scene`] may carry [`Animation`]s: channels that move the `translation` or `rotation` of a
+//! mesh node or a skin joint ([`AnimationTarget`]) through keyframes interpolated LINEAR. Each
+//! channel is written as one sampler whose input (times, seconds, with the `min`/`max` the spec
+//! requires of sampler inputs) is shared by channels with the same times; translations are
+//! converted like node translations, rotations written sign-continuous ([`sign_continuous`]).
+//! The reader returns the LINEAR translation and rotation channels of the nodes it read and
+//! skips the rest (scale, morph weights, STEP and CUBICSPLINE samplers).
 
+mod animation;
 mod container;
 mod read;
 mod write;
@@ -54,7 +64,7 @@ use crate::error::{Error, Result};
 use crate::geometry::{TriMesh, Vec3};
 use crate::io::atomic::{read_bytes, write_bytes_atomic};
 use crate::io::Units;
-use nalgebra::Matrix4;
+use nalgebra::{Matrix4, UnitQuaternion};
 use std::path::Path;
 
 /// One joint of a skin, in the rest (bind) pose.
@@ -104,6 +114,86 @@ pub struct SceneMesh {
 pub struct Scene {
     /// One entry per mesh node, in depth-first scene order.
     pub meshes: Vec<SceneMesh>,
+    /// Keyframe animations of the mesh and joint nodes (glTF 2.0 spec 3.11 "Animations");
+    /// empty for a still scene.
+    pub animations: Vec<Animation>,
+}
+
+/// The node an animation channel moves: the node of a [`Scene::meshes`] entry, or a joint of
+/// its skin.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum AnimationTarget {
+    /// The mesh node of `meshes[i]`. Its animated transform places the mesh's vertices as
+    /// stored (for an unskinned mesh written by this crate the node has no other transform).
+    /// A skinned mesh node cannot be a target: spec 3.7.3 ignores its transform.
+    Mesh(usize),
+    /// Joint `joint` (index into [`Skin::joints`]) of `meshes[mesh]`'s skin.
+    Joint { mesh: usize, joint: usize },
+}
+
+/// The keyframe values of one channel, one per keyframe time. They replace the node's local
+/// `translation` or `rotation` property (spec 3.11: animated TRS properties override the
+/// node's own; the others keep their static value).
+#[derive(Clone, Debug, PartialEq)]
+pub enum Keyframes {
+    /// Local translations, mm.
+    Translation(Vec<Vec3>),
+    /// Local rotations. The writer makes neighbours sign-continuous (see
+    /// [`sign_continuous`]); the reader returns them as stored.
+    Rotation(Vec<UnitQuaternion<f64>>),
+}
+
+impl Keyframes {
+    /// Number of keyframes.
+    pub fn len(&self) -> usize {
+        match self {
+            Keyframes::Translation(v) => v.len(),
+            Keyframes::Rotation(v) => v.len(),
+        }
+    }
+
+    /// No keyframe.
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+}
+
+/// One animated property of one node, interpolated LINEAR (spec 3.11: lerp for translations,
+/// slerp for rotations).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Channel {
+    /// The node moved.
+    pub target: AnimationTarget,
+    /// Keyframe times, seconds, `>= 0` and strictly increasing (spec 3.11, sampler input).
+    pub times: Vec<f64>,
+    /// The values at those times.
+    pub values: Keyframes,
+}
+
+/// A named set of channels played together (one glTF `animation`).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Animation {
+    pub name: String,
+    pub channels: Vec<Channel>,
+}
+
+/// `quats` with each one's sign chosen so that its dot product with the previous one is not
+/// negative. `q` and `-q` are the same rotation, but glTF's LINEAR rotation interpolation is a
+/// slerp between the stored 4-vectors (spec 3.11 and Appendix "Interpolation"), which goes the
+/// long way round (through up to 360 degrees) between neighbours of opposite signs; choosing
+/// signs continuously makes every step the short way.
+pub fn sign_continuous(quats: &[UnitQuaternion<f64>]) -> Vec<UnitQuaternion<f64>> {
+    let mut out: Vec<UnitQuaternion<f64>> = Vec::with_capacity(quats.len());
+    for q in quats {
+        let q = match out.last() {
+            Some(p) if p.coords.dot(&q.coords) < 0.0 => {
+                UnitQuaternion::new_unchecked(-q.into_inner())
+            }
+            _ => *q,
+        };
+        out.push(q);
+    }
+    out
 }
 
 /// Read a `.gltf` (buffers external, relative to the file, or embedded as base64 `data:` URIs)

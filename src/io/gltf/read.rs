@@ -2,7 +2,7 @@
 //! checked against the bytes present before use (see the parent module for the conventions).
 
 use super::container::{data_uri, is_glb, percent_decode, split_glb, truncate};
-use super::{Scene, SceneMesh, Skin, SkinJoint};
+use super::{Animation, AnimationTarget, Channel, Keyframes, Scene, SceneMesh, Skin, SkinJoint};
 use crate::error::{Error, Result};
 use crate::geometry::{Point, TriMesh, Vec3};
 use crate::io::Units;
@@ -587,6 +587,7 @@ impl Doc<'_> {
         let mut skipped: Vec<String> = Vec::new();
         // Instancing (many nodes showing one mesh) multiplies the output; cap it by the input.
         let mut budget = 4 * self.input_len + INSTANCE_SLACK;
+        let mut targets: HashMap<usize, AnimationTarget> = HashMap::new();
         let mut stack: Vec<usize> = roots.into_iter().rev().collect();
         while let Some(n) = stack.pop() {
             if std::mem::replace(&mut visited[n], true) {
@@ -615,6 +616,15 @@ impl Doc<'_> {
                 }
             };
             if let Some(sm) = self.scene_mesh(n, m, &node_world, skin, &mut skipped)? {
+                let k = meshes.len();
+                targets.entry(n).or_insert(AnimationTarget::Mesh(k));
+                if let Some((s, _)) = skin {
+                    for (j, jn) in root.skins[s].joints.iter().enumerate() {
+                        targets
+                            .entry(jn.value())
+                            .or_insert(AnimationTarget::Joint { mesh: k, joint: j });
+                    }
+                }
                 let cost = sm.mesh.n_vertices()
                     + sm.mesh.n_faces()
                     + sm.skin.as_ref().map_or(0, |s| s.joints.len());
@@ -643,7 +653,101 @@ impl Doc<'_> {
             };
             return Err(self.err(format!("no triangle mesh to read: {why}")));
         }
-        Ok(Scene { meshes })
+        let animations = self.animations(&targets)?;
+        Ok(Scene { meshes, animations })
+    }
+
+    /// The animations (spec 3.11) as far as they move what was read: LINEAR `translation` and
+    /// `rotation` channels whose node is a mesh node or skin joint of the scene (`targets`).
+    /// Other channels (scale, morph weights, STEP or CUBICSPLINE samplers, nodes outside the
+    /// scene) are skipped, and an animation left without channels is dropped. Times must be
+    /// as many as values; translations come back in mm.
+    fn animations(&self, targets: &HashMap<usize, AnimationTarget>) -> Result<Vec<Animation>> {
+        use json::animation::{Interpolation, Property};
+        let mut out = Vec::new();
+        for (a, anim) in self.root.animations.iter().enumerate() {
+            let al = labelled("animation", a, anim.name.as_deref());
+            let mut channels = Vec::new();
+            for (c, ch) in anim.channels.iter().enumerate() {
+                let Some(&target) = targets.get(&ch.target.node.value()) else {
+                    continue;
+                };
+                let sampler = anim.samplers.get(ch.sampler.value()).ok_or_else(|| {
+                    self.err(format!(
+                        "{al} channel {c} names sampler {}, but it has {}",
+                        ch.sampler.value(),
+                        anim.samplers.len()
+                    ))
+                })?;
+                if sampler.interpolation != Checked::Valid(Interpolation::Linear) {
+                    continue;
+                }
+                let what = format!("{al} channel {c}");
+                let (ty, path) = match ch.target.path {
+                    Checked::Valid(Property::Translation) => (Type::Vec3, "translation"),
+                    Checked::Valid(Property::Rotation) => (Type::Vec4, "rotation"),
+                    _ => continue,
+                };
+                let times = self.typed(
+                    sampler.input.value(),
+                    &format!("input of {what}"),
+                    &[Type::Scalar],
+                    None,
+                )?;
+                let values = self.typed(
+                    sampler.output.value(),
+                    &format!("output of {what}"),
+                    &[ty],
+                    None,
+                )?;
+                if values.count != times.count {
+                    return Err(self.err(format!(
+                        "{what}: {} {path} values for {} times",
+                        values.count, times.count
+                    )));
+                }
+                let values = match ty {
+                    Type::Vec3 => Keyframes::Translation(
+                        values
+                            .values
+                            .chunks_exact(3)
+                            .map(|v| Vec3::new(v[0], v[1], v[2]) * self.mm)
+                            .collect(),
+                    ),
+                    _ => Keyframes::Rotation(
+                        values
+                            .values
+                            .chunks_exact(4)
+                            .map(|v| Quaternion::new(v[3], v[0], v[1], v[2]))
+                            .map(|q| {
+                                if q.norm().is_finite() && q.norm() > 1e-6 {
+                                    Ok(UnitQuaternion::from_quaternion(q))
+                                } else {
+                                    Err(self.err(format!(
+                                        "{what}: a zero or non-finite rotation quaternion"
+                                    )))
+                                }
+                            })
+                            .collect::<Result<_>>()?,
+                    ),
+                };
+                channels.push(Channel {
+                    target,
+                    times: times.values,
+                    values,
+                });
+            }
+            if !channels.is_empty() {
+                out.push(Animation {
+                    name: anim
+                        .name
+                        .clone()
+                        .unwrap_or_else(|| format!("animation {a}")),
+                    channels,
+                });
+            }
+        }
+        Ok(out)
     }
 
     /// The joints of skin `s` (spec 3.7.3): names, parents within the skin, local and world

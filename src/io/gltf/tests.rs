@@ -273,6 +273,7 @@ fn test_scene(root_parent: Matrix4<f64>) -> Scene {
                 skin: None,
             },
         ],
+        animations: Vec::new(),
     }
 }
 
@@ -809,6 +810,7 @@ fn export_validator_samples() {
     write_glb(&dir.join("skinned_colours.glb"), &scene, Units::Metres).unwrap();
     let unskinned = Scene {
         meshes: vec![scene.meshes[1].clone()],
+        animations: Vec::new(),
     };
     write_glb(&dir.join("unskinned.glb"), &unskinned, Units::Metres).unwrap();
     let mut coloured = unskinned.clone();
@@ -879,5 +881,180 @@ proptest! {
             glb[digits[at % digits.len()]] = b'0' + d;
         }
         let _ = read_unguarded(&glb);
+    }
+}
+
+/// Rotations about z by `deg` degrees.
+fn about_z(deg: f64) -> UnitQuaternion<f64> {
+    UnitQuaternion::from_axis_angle(&Vector3::z_axis(), deg.to_radians())
+}
+
+/// Consecutive stored quaternions of opposite sign would make LINEAR slerp turn the long way:
+/// each output is the same rotation as its input, and neighbours have a non-negative dot.
+#[test]
+fn sign_continuous_keeps_rotations_and_takes_the_short_way() {
+    let input: Vec<UnitQuaternion<f64>> = [0.0, 100.0, 170.0, 190.0, 260.0, 350.0, 370.0]
+        .iter()
+        .enumerate()
+        .map(|(k, &d)| {
+            let q = about_z(d);
+            // Flip every other one by hand: the same rotation, the other sign.
+            if k % 2 == 1 {
+                UnitQuaternion::new_unchecked(-q.into_inner())
+            } else {
+                q
+            }
+        })
+        .collect();
+    let out = sign_continuous(&input);
+    assert_eq!(out.len(), input.len());
+    for (a, b) in input.iter().zip(&out) {
+        assert!(a.angle_to(b) < 1e-12);
+    }
+    for w in out.windows(2) {
+        assert!(w[0].coords.dot(&w[1].coords) >= 0.0, "{w:?}");
+    }
+    assert!(sign_continuous(&[]).is_empty());
+}
+
+/// An animation on a joint and on an unskinned mesh node: written as LINEAR samplers whose
+/// time input has min/max and is shared by channels with the same times, read back with the
+/// same targets, times, translations (in mm) and rotations (sign-continuous in the file).
+#[test]
+fn animation_round_trips() {
+    let mut scene = test_scene(Matrix4::identity());
+    let times = vec![0.0, 0.1, 0.25, 0.5];
+    let mut rotations: Vec<UnitQuaternion<f64>> = [0.0, 120.0, 200.0, 300.0]
+        .iter()
+        .map(|&d| about_z(d))
+        .collect();
+    // The same rotation with the other sign: the writer must flip it back.
+    rotations[2] = UnitQuaternion::new_unchecked(-rotations[2].into_inner());
+    let translations: Vec<Vec3> = (0..4)
+        .map(|k| Vec3::new(10.0 * k as f64, -3.5, 250.0))
+        .collect();
+    scene.animations.push(Animation {
+        name: "move".into(),
+        channels: vec![
+            Channel {
+                target: AnimationTarget::Joint { mesh: 0, joint: 1 },
+                times: times.clone(),
+                values: Keyframes::Rotation(rotations.clone()),
+            },
+            Channel {
+                target: AnimationTarget::Mesh(1),
+                times: times.clone(),
+                values: Keyframes::Translation(translations.clone()),
+            },
+            Channel {
+                target: AnimationTarget::Mesh(1),
+                times: vec![0.0, 1.0],
+                values: Keyframes::Rotation(vec![about_z(0.0), about_z(90.0)]),
+            },
+        ],
+    });
+    let bytes = glb_bytes(&scene, Units::Metres).unwrap();
+
+    let doc = glb_json(&bytes);
+    let anim = &doc["animations"][0];
+    let samplers = anim["samplers"].as_array().unwrap();
+    assert_eq!(samplers.len(), 3);
+    assert_eq!(samplers[0]["input"], samplers[1]["input"]);
+    assert_ne!(samplers[0]["input"], samplers[2]["input"]);
+    for s in samplers {
+        assert_eq!(s["interpolation"], "LINEAR");
+        let acc = &doc["accessors"][s["input"].as_u64().unwrap() as usize];
+        assert_eq!(acc["type"], "SCALAR");
+        assert!(acc["min"].is_array() && acc["max"].is_array(), "{acc}");
+    }
+    let input = &doc["accessors"][samplers[0]["input"].as_u64().unwrap() as usize];
+    assert_eq!(input["min"][0].as_f64(), Some(0.0));
+    assert_eq!(input["max"][0].as_f64(), Some(0.5));
+    // Joint 1 of the skin is the node after the mesh node and joint 0.
+    assert_eq!(anim["channels"][0]["target"]["node"], 2);
+    assert_eq!(anim["channels"][0]["target"]["path"], "rotation");
+    assert_eq!(anim["channels"][1]["target"]["path"], "translation");
+
+    let back = read_gltf_slice(&bytes, Units::Metres, Path::new("anim.glb")).unwrap();
+    assert_eq!(back.animations.len(), 1);
+    let a = &back.animations[0];
+    assert_eq!(a.name, "move");
+    assert_eq!(a.channels.len(), 3);
+    for (x, y) in a.channels.iter().zip(&scene.animations[0].channels) {
+        assert_eq!(x.target, y.target);
+        assert_eq!(x.times.len(), y.times.len());
+        for (s, t) in x.times.iter().zip(&y.times) {
+            assert!((s - t).abs() < 1e-7);
+        }
+    }
+    let Keyframes::Rotation(r) = &a.channels[0].values else {
+        panic!("rotation expected")
+    };
+    for (p, q) in r.iter().zip(&rotations) {
+        assert!(p.angle_to(q) < 1e-6);
+    }
+    assert!(rotations[1].coords.dot(&rotations[2].coords) < 0.0);
+    for w in r.windows(2) {
+        assert!(w[0].coords.dot(&w[1].coords) >= 0.0);
+    }
+    let Keyframes::Translation(t) = &a.channels[1].values else {
+        panic!("translation expected")
+    };
+    for (p, q) in t.iter().zip(&translations) {
+        assert!((p - q).norm() < 1e-4, "{p} vs {q}");
+    }
+}
+
+/// What glTF cannot hold is refused with a message naming the channel.
+#[test]
+fn animation_errors_name_the_channel() {
+    let base = test_scene(Matrix4::identity());
+    let chan = |target, times: Vec<f64>, n: usize| Channel {
+        target,
+        times,
+        values: Keyframes::Translation(vec![Vec3::zeros(); n]),
+    };
+    let cases: Vec<(Vec<Channel>, &str)> = vec![
+        (vec![], "no channel"),
+        (
+            vec![chan(AnimationTarget::Mesh(0), vec![0.0], 1)],
+            "skinned mesh",
+        ),
+        (
+            vec![chan(AnimationTarget::Mesh(1), vec![0.0, 0.0], 2)],
+            "not after",
+        ),
+        (
+            vec![chan(AnimationTarget::Mesh(1), vec![-1.0, 0.0], 2)],
+            ">= 0",
+        ),
+        (
+            vec![chan(AnimationTarget::Mesh(1), vec![0.0, 1.0], 3)],
+            "3 values for 2 times",
+        ),
+        (
+            vec![chan(
+                AnimationTarget::Joint { mesh: 1, joint: 0 },
+                vec![0.0],
+                1,
+            )],
+            "no skin",
+        ),
+        (
+            vec![
+                chan(AnimationTarget::Mesh(1), vec![0.0], 1),
+                chan(AnimationTarget::Mesh(1), vec![1.0], 1),
+            ],
+            "second channel",
+        ),
+    ];
+    for (channels, want) in cases {
+        let mut scene = base.clone();
+        scene.animations.push(Animation {
+            name: "a".into(),
+            channels,
+        });
+        let e = glb_bytes(&scene, Units::Metres).unwrap_err().to_string();
+        assert!(e.contains(want) && e.contains("animation 0"), "{want}: {e}");
     }
 }

@@ -1,5 +1,6 @@
 //! The GLB writer (see [`super::glb_bytes`] for the layout and the checks).
 
+use super::animation::{write_animations, NodeMap};
 use super::container::compose_glb;
 use super::{Scene, SceneMesh, Skin, SkinJoint};
 use crate::error::{Error, Result};
@@ -11,7 +12,7 @@ use serde_json::{json, Map, Value};
 /// glTF enums (spec 5.1.1 accessor.componentType, 5.11.4 bufferView.target, 5.24.4 mode).
 const UNSIGNED_SHORT: u32 = 5123;
 const UNSIGNED_INT: u32 = 5125;
-const FLOAT: u32 = 5126;
+pub(super) const FLOAT: u32 = 5126;
 const ARRAY_BUFFER: u32 = 34962;
 const ELEMENT_ARRAY_BUFFER: u32 = 34963;
 const TRIANGLES: u32 = 4;
@@ -22,7 +23,7 @@ const MATRIX_TOL: f64 = 1e-6;
 
 /// The binary buffer and the buffer views and accessors that describe it.
 #[derive(Default)]
-struct Bin {
+pub(super) struct Bin {
     data: Vec<u8>,
     views: Vec<Value>,
     accessors: Vec<Value>,
@@ -31,7 +32,7 @@ struct Bin {
 impl Bin {
     /// Append one accessor with its own buffer view at a 4-byte aligned offset (spec 3.6.2.4:
     /// offsets must be multiples of the component size; 4 covers every type written here).
-    fn accessor(
+    pub(super) fn accessor(
         &mut self,
         bytes: &[u8],
         component_type: u32,
@@ -65,7 +66,7 @@ impl Bin {
     }
 }
 
-fn f32s(values: impl IntoIterator<Item = f32>) -> Vec<u8> {
+pub(super) fn f32s(values: impl IntoIterator<Item = f32>) -> Vec<u8> {
     values.into_iter().flat_map(f32::to_le_bytes).collect()
 }
 
@@ -156,9 +157,14 @@ pub(super) fn glb_bytes(scene: &Scene, units: Units) -> Result<Vec<u8>> {
     if scene.meshes.is_empty() {
         return Err(Error::invalid("the scene has no mesh to write"));
     }
+    let mut node_map = NodeMap::default();
     for sm in &scene.meshes {
         let node_index = nodes.len();
         scene_nodes.push(node_index);
+        node_map.mesh.push(node_index);
+        node_map
+            .joints
+            .push(sm.skin.as_ref().map(|s| (node_index + 1, s.joints.len())));
         let (attributes, indices) = write_mesh(&mut bin, sm, mm)?;
         let mut node = json!({ "name": sm.name, "mesh": meshes.len() });
         meshes.push(json!({
@@ -201,13 +207,18 @@ pub(super) fn glb_bytes(scene: &Scene, units: Units) -> Result<Vec<u8>> {
                 "roughnessFactor": 0.6,
             },
         }],
-        "buffers": [{ "byteLength": bin.data.len() }],
-        "bufferViews": bin.views,
-        "accessors": bin.accessors,
     });
     if !skins.is_empty() {
         root["skins"] = Value::Array(skins);
     }
+    let animations = write_animations(&mut bin, scene, &node_map, mm)?;
+    if !animations.is_empty() {
+        root["animations"] = Value::Array(animations);
+    }
+    // The animation accessors were added after the root was assembled.
+    root["buffers"] = json!([{ "byteLength": bin.data.len() }]);
+    root["bufferViews"] = Value::Array(std::mem::take(&mut bin.views));
+    root["accessors"] = Value::Array(std::mem::take(&mut bin.accessors));
     let text = serde_json::to_vec(&root).map_err(|e| Error::invalid(format!("glTF JSON: {e}")))?;
     compose_glb(&text, &bin.data).map_err(Error::invalid)
 }
