@@ -4,7 +4,7 @@
 //! units) or `rotation` (VEC4 unit quaternion, x y z w). Channels with identical times share
 //! one input accessor.
 
-use super::write::{f32s, Bin, FLOAT};
+use super::buffer::{f32s, Bin, FLOAT};
 use super::{sign_continuous, AnimationTarget, Channel, Keyframes, Scene};
 use crate::error::{Error, Result};
 use serde_json::{json, Map, Value};

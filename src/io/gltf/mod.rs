@@ -53,6 +53,7 @@
 //! skips the rest (scale, morph weights, STEP and CUBICSPLINE samplers).
 
 mod animation;
+mod buffer;
 mod container;
 mod read;
 mod write;

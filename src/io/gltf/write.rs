@@ -1,6 +1,7 @@
 //! The GLB writer (see [`super::glb_bytes`] for the layout and the checks).
 
 use super::animation::{write_animations, NodeMap};
+use super::buffer::{f32s, Bin, FLOAT};
 use super::container::compose_glb;
 use super::{Scene, SceneMesh, Skin, SkinJoint};
 use crate::error::{Error, Result};
@@ -12,7 +13,6 @@ use serde_json::{json, Map, Value};
 /// glTF enums (spec 5.1.1 accessor.componentType, 5.11.4 bufferView.target, 5.24.4 mode).
 const UNSIGNED_SHORT: u32 = 5123;
 const UNSIGNED_INT: u32 = 5125;
-pub(super) const FLOAT: u32 = 5126;
 const ARRAY_BUFFER: u32 = 34962;
 const ELEMENT_ARRAY_BUFFER: u32 = 34963;
 const TRIANGLES: u32 = 4;
@@ -20,55 +20,6 @@ const TRIANGLES: u32 = 4;
 /// Relative tolerance for "this matrix is that matrix" (joint chains, TRS decomposition):
 /// well above f64 round-off of products of f32 data, well below anything a user would mean.
 const MATRIX_TOL: f64 = 1e-6;
-
-/// The binary buffer and the buffer views and accessors that describe it.
-#[derive(Default)]
-pub(super) struct Bin {
-    data: Vec<u8>,
-    views: Vec<Value>,
-    accessors: Vec<Value>,
-}
-
-impl Bin {
-    /// Append one accessor with its own buffer view at a 4-byte aligned offset (spec 3.6.2.4:
-    /// offsets must be multiples of the component size; 4 covers every type written here).
-    pub(super) fn accessor(
-        &mut self,
-        bytes: &[u8],
-        component_type: u32,
-        count: usize,
-        ty: &str,
-        target: Option<u32>,
-        extra: Map<String, Value>,
-    ) -> usize {
-        self.data.resize(self.data.len().div_ceil(4) * 4, 0);
-        let mut view = json!({
-            "buffer": 0,
-            "byteOffset": self.data.len(),
-            "byteLength": bytes.len(),
-        });
-        if let Some(t) = target {
-            view["target"] = json!(t);
-        }
-        self.data.extend_from_slice(bytes);
-        self.views.push(view);
-        let mut acc = json!({
-            "bufferView": self.views.len() - 1,
-            "componentType": component_type,
-            "count": count,
-            "type": ty,
-        });
-        if let Value::Object(m) = &mut acc {
-            m.extend(extra);
-        }
-        self.accessors.push(acc);
-        self.accessors.len() - 1
-    }
-}
-
-pub(super) fn f32s(values: impl IntoIterator<Item = f32>) -> Vec<u8> {
-    values.into_iter().flat_map(f32::to_le_bytes).collect()
-}
 
 /// Largest absolute entry, the scale for [`MATRIX_TOL`].
 fn max_abs(m: &Matrix4<f64>) -> f64 {
