@@ -5,23 +5,13 @@
 
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
 use ergohand::anatomy::Side;
-use ergohand::template::load_template;
-use ergohand::track::fixture::{grasp_states, motion_trial, static_markers, static_trial};
-use ergohand::track::{track_trial, Attachment, IkOptions, Kinematics};
-use nalgebra::{Isometry3, Translation3, UnitQuaternion};
+use ergohand::track::fixture::{grasp_setup, motion_trial};
+use ergohand::track::{track_trial, IkOptions};
 use std::hint::black_box;
 
 fn track_bench(c: &mut Criterion) {
-    let sk = load_template(Side::Right).unwrap().skeleton;
-    let kin = Kinematics::full(sk.clone());
-    let st = static_trial(&static_markers(&sk), 3);
-    let att = Attachment::from_static(&sk, &st);
-    let start = Isometry3::from_parts(
-        Translation3::new(150.0, -40.0, 220.0),
-        UnitQuaternion::from_euler_angles(0.2, 0.9, -0.4),
-    );
     let frames = 400;
-    let truth = grasp_states(frames, 100.0, start);
+    let (kin, st, att, truth) = grasp_setup(Side::Right, frames);
     let motion = motion_trial(&kin, &att, &truth, 100.0, 0.5, 7);
     let mut gappy = motion.clone();
     let mut rng = ergohand::rng::Rng::new(3);

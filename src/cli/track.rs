@@ -130,7 +130,15 @@ pub(crate) fn track_job(
         None => None,
     };
     let replay = match (&hand, &part_shape, &scene) {
-        (Some(h), Some(p), Some(s)) => Some(contacts(h, p, s, &kin, &tracked, &mut warnings)),
+        (Some(h), Some(p), Some(s)) => Some(contacts(
+            h,
+            p,
+            s,
+            &kin,
+            &tracked,
+            &replay_opts,
+            &mut warnings,
+        )),
         _ => None,
     };
     let animated = match &hand {
@@ -181,9 +189,10 @@ fn contacts(
     scene: &Scene,
     kin: &crate::track::Kinematics,
     tracked: &Tracked,
+    opts: &ReplayOptions,
     warnings: &mut Vec<String>,
 ) -> ContactReplay {
-    let replay = replay_contacts(hand, kin, tracked, part, &ReplayOptions::default());
+    let replay = replay_contacts(hand, kin, tracked, part, opts);
     let missing = replay.missing(tracked);
     if !missing.is_empty() {
         warnings.push(format!(

@@ -8,11 +8,9 @@ use crate::error::{Error, Result};
 use crate::geometry::{Point, TriMesh};
 use crate::io::{obj, Units};
 use crate::skeleton::forward_kinematics::link_transforms;
-use crate::skeleton::record::{record_frame, JointRecord};
-use crate::skeleton::{JointFrame, Pose, Skeleton};
+use crate::skeleton::record::parse_link_model;
+use crate::skeleton::{Pose, Skeleton};
 use crate::template::{dominant_links, LinkWeights, TemplateHand};
-use serde::Deserialize;
-use std::collections::BTreeMap;
 use std::path::Path;
 
 /// A reconstructed hand ready to pose.
@@ -26,13 +24,6 @@ pub struct IndividualHand {
     pub skeleton: Skeleton,
     /// Per skin vertex, (link index over [`Link::ALL`], weight), summing to 1.
     pub weights: LinkWeights,
-}
-
-/// The parts of `link_model.json` this module needs (spec section 3).
-#[derive(Deserialize)]
-struct LinkModelFile {
-    hand: Option<Side>,
-    joints: BTreeMap<String, JointRecord>,
 }
 
 impl IndividualHand {
@@ -92,25 +83,8 @@ impl IndividualHand {
     pub fn load(out_dir: &Path, method: WeightMethod) -> Result<Self> {
         let model_path = out_dir.join("link_model.json");
         let text = std::fs::read_to_string(&model_path).map_err(|e| Error::io(&model_path, e))?;
-        let model: LinkModelFile = serde_json::from_str(&text)
-            .map_err(|e| Error::input(&model_path, format!("not a link model: {e}")))?;
-        let side = model.hand.ok_or_else(|| {
-            Error::input(
-                &model_path,
-                "field 'hand' (\"right\" or \"left\") is missing; re-run reconstruct",
-            )
-        })?;
-        let mut joints = Vec::with_capacity(Joint::ALL.len());
-        for j in Joint::ALL {
-            let (centre, frame) = record_frame(&model.joints, j, &model_path)?;
-            if !centre.coords.iter().all(|x| x.is_finite()) {
-                return Err(Error::input(
-                    &model_path,
-                    format!("joint {j}: 'centre' is not finite"),
-                ));
-            }
-            joints.push(JointFrame { centre, frame });
-        }
+        let (skeleton, _) = parse_link_model(&text, &model_path)?;
+        let side = skeleton.side;
         let skin_path = out_dir.join("skin.obj");
         let skin = obj::read_obj(&skin_path, Units::Millimetres)?;
         let template = crate::template::model_template(out_dir, side)?;
@@ -127,11 +101,6 @@ impl IndividualHand {
                 ),
             ));
         }
-        let skeleton = Skeleton {
-            side,
-            joints,
-            tips: [Point::origin(); 5],
-        };
         Self::from_skin(&template, skin, skeleton, method).map_err(|e| e.in_file(&skin_path))
     }
 

@@ -99,3 +99,38 @@ pub fn skeleton_from_records(
     }
     Ok(Skeleton { side, joints, tips })
 }
+
+/// The parts of `link_model.json` a reader of the model needs.
+#[derive(Deserialize)]
+struct LinkModelFile {
+    hand: Option<crate::anatomy::Side>,
+    joints: BTreeMap<String, JointRecord>,
+}
+
+/// `link_model.json` (spec section 3) from its `text`, read from `path`: the skeleton of its
+/// hand and joints table (fingertips as [`skeleton_from_records`] extrapolates them) and the
+/// table itself, for the fields beyond the skeleton (each joint's `dof`). Errors name `path`
+/// and the field or joint: not a link model, no `hand`, a joint missing, a centre not finite.
+pub fn parse_link_model(
+    text: &str,
+    path: &Path,
+) -> Result<(Skeleton, BTreeMap<String, JointRecord>)> {
+    let file: LinkModelFile = serde_json::from_str(text)
+        .map_err(|e| Error::input(path, format!("not a link model: {e}")))?;
+    let side = file.hand.ok_or_else(|| {
+        Error::input(
+            path,
+            "field 'hand' (\"right\" or \"left\") is missing; re-run reconstruct",
+        )
+    })?;
+    let skeleton = skeleton_from_records(&file.joints, side, path)?;
+    for j in Joint::ALL {
+        if !skeleton.centre(j).coords.iter().all(|x| x.is_finite()) {
+            return Err(Error::input(
+                path,
+                format!("joint {j}: 'centre' is not finite"),
+            ));
+        }
+    }
+    Ok((skeleton, file.joints))
+}

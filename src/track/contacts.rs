@@ -74,11 +74,6 @@ pub struct ContactReplay {
 }
 
 impl ContactReplay {
-    /// Frames with contacts measured (hand and part both tracked).
-    pub fn measured(&self) -> usize {
-        self.frames.iter().filter(|f| f.is_some()).count()
-    }
-
     /// Frames where the hand was solved but the part's pose was unknown, so contacts are `None`.
     pub fn missing(&self, tracked: &Tracked) -> Vec<usize> {
         (0..self.frames.len())
@@ -458,7 +453,7 @@ fn mean_edge_length(mesh: &TriMesh) -> f64 {
 mod tests {
     use super::*;
     use crate::anatomy::{Link, Side};
-    use crate::track::fixture::grasp_states;
+    use crate::track::fixture::{grasp_states, lab_start};
     use crate::track::{Attachment, FrameSolution, HandState};
     use nalgebra::{Translation3, UnitQuaternion, Vector3};
 
@@ -488,12 +483,8 @@ mod tests {
     fn replayed_contacts_equal_the_closed_form_on_a_slab() {
         let hand = SkinnedHand::template(Side::Right).unwrap();
         let kin = Kinematics::full(hand.skeleton().clone());
-        let start = Isometry3::from_parts(
-            Translation3::new(150.0, -40.0, 220.0),
-            UnitQuaternion::from_euler_angles(0.2, 0.9, -0.4),
-        );
         let n = 240;
-        let states = grasp_states(n, 100.0, start);
+        let states = grasp_states(n, 100.0, lab_start());
         let rest = &hand.rest_mesh().vertices;
         let palm: Vec<usize> = hand.link_vertices()[Link::Palm.index()].clone();
         let centre = palm

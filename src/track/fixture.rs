@@ -147,3 +147,25 @@ pub fn motion_trial(
     let labels = att.markers.iter().map(|m| m.name.clone()).collect();
     Trajectories::new(rate, labels, positions, "trials/grasp.c3d").expect("well formed")
 }
+
+/// Where the fixture's grasps start: the palm elsewhere in the lab than in the static trial,
+/// and turned, so that no test passes by the reference posture's identity.
+pub fn lab_start() -> Isometry3<f64> {
+    Isometry3::from_parts(
+        Translation3::new(150.0, -40.0, 220.0),
+        UnitQuaternion::from_euler_angles(0.2, 0.9, -0.4),
+    )
+}
+
+/// The template's link model of `side` with every joint's own DOF, its static trial (3
+/// frames), the markers attached from it, and the true states of a grasp of `n` frames at
+/// 100 Hz from [`lab_start`].
+pub fn grasp_setup(side: Side, n: usize) -> (Kinematics, Trajectories, Attachment, Vec<HandState>) {
+    let sk = crate::template::load_template(side)
+        .expect("the shipped template loads")
+        .skeleton;
+    let kin = Kinematics::full(sk.clone());
+    let st = static_trial(&static_markers(&sk), 3);
+    let att = Attachment::from_static(&sk, &st);
+    (kin, st, att, grasp_states(n, 100.0, lab_start()))
+}

@@ -14,14 +14,12 @@
 //! rotational degree of freedom as a world axis through a world centre: the derivative of a
 //! point `p` moved by angle `a` is `axis × (p - centre)` (analytic, no differencing).
 
-use crate::anatomy::{Joint, Link, Side};
+use crate::anatomy::{Joint, Link};
 use crate::error::{Error, Result};
 use crate::geometry::{Point, Vec3};
-use crate::skeleton::record::{skeleton_from_records, JointRecord};
+use crate::skeleton::record::parse_link_model;
 use crate::skeleton::{Pose, Skeleton};
 use nalgebra::{Isometry3, Translation3, Unit, UnitQuaternion};
-use serde::Deserialize;
-use std::collections::BTreeMap;
 use std::path::Path;
 
 /// Most parameters of a hand: the palm's 6, the wrist's 3, five digits of 3 + 1 + 1.
@@ -64,13 +62,6 @@ pub struct Kinematics {
     chains: Vec<Vec<Joint>>,
 }
 
-/// The parts of `link_model.json` the tracker reads.
-#[derive(Deserialize)]
-struct LinkModelFile {
-    hand: Option<Side>,
-    joints: BTreeMap<String, JointRecord>,
-}
-
 /// Read `OUT/link_model.json` (spec section 3): the skeleton and each joint's `dof`. Errors
 /// name the file and the joint or field.
 pub fn load_link_model(model_dir: &Path) -> Result<Kinematics> {
@@ -85,24 +76,10 @@ pub fn load_link_model(model_dir: &Path) -> Result<Kinematics> {
         }
         Err(e) => return Err(Error::io(&path, e)),
     };
-    let file: LinkModelFile = serde_json::from_str(&text)
-        .map_err(|e| Error::input(&path, format!("not a link model: {e}")))?;
-    let side = file.hand.ok_or_else(|| {
-        Error::input(
-            &path,
-            "field 'hand' (\"right\" or \"left\") is missing; re-run reconstruct",
-        )
-    })?;
-    let skeleton = skeleton_from_records(&file.joints, side, &path)?;
+    let (skeleton, joints) = parse_link_model(&text, &path)?;
     let mut dof = [0usize; 16];
     for j in Joint::ALL {
-        let r = &file.joints[j.name()];
-        if !r.centre.iter().all(|x| x.is_finite()) {
-            return Err(Error::input(
-                &path,
-                format!("joint {j}: 'centre' is not finite"),
-            ));
-        }
+        let r = &joints[j.name()];
         if !(1..=3).contains(&r.dof) {
             return Err(Error::input(
                 &path,
@@ -302,7 +279,7 @@ mod tests {
     /// and the analytic derivatives match central differences.
     #[test]
     fn transforms_and_derivatives_agree_with_the_skeleton() {
-        let sk = crate::template::load_template(Side::Right)
+        let sk = crate::template::load_template(crate::anatomy::Side::Right)
             .unwrap()
             .skeleton;
         let k = Kinematics::full(sk.clone());
