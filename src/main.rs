@@ -186,8 +186,9 @@ enum Command {
     },
     /// Reconstruct every subject folder of SUBJECTS_DIR (a sub-folder holding subject.toml) in
     /// parallel into OUT/<folder name>/, skipping subjects whose outputs were made from the same
-    /// input content (and are newer); a failing subject is reported and skipped, the exit status is non-zero if any
-    /// failed. Summary in OUT/batch-summary.md and .json.
+    /// input content (and are newer); a failing subject is reported and skipped, the exit status
+    /// is non-zero if any failed. With --track, then every motion of every subject is tracked.
+    /// Summary in OUT/batch-summary.md and .json.
     Batch {
         subjects_dir: PathBuf,
         #[arg(long)]
@@ -199,6 +200,15 @@ enum Command {
         /// A template folder every subject is reconstructed from (as `reconstruct --template`).
         #[arg(long, value_name = "DIR")]
         template: Option<PathBuf>,
+        /// Also track every motion trial ([motions] of each subject.toml) with its subject's
+        /// reconstruction, as `track` does, into OUT/<folder name>/motions/<motion>/.
+        #[arg(long)]
+        track: bool,
+        /// With --track: the scene whose part a motion handles, MOTION=SCENE.toml for one
+        /// motion name or SCENE.toml for every other motion; repeatable. A motion without a
+        /// scene is tracked without a part.
+        #[arg(long, value_name = "[MOTION=]SCENE", requires = "track")]
+        scene: Vec<String>,
     },
 }
 
@@ -311,16 +321,21 @@ fn main() -> ExitCode {
             out,
             jobs,
             template,
-        } => cli::batch(
-            &subjects_dir,
-            &out,
-            &cli::batch::BatchOptions {
-                jobs,
-                template,
-                ..Default::default()
-            },
-        )
-        .map(|_| ()),
+            track,
+            scene,
+        } => cli::batch::MotionScenes::parse(&scene).and_then(|scenes| {
+            cli::batch(
+                &subjects_dir,
+                &out,
+                &cli::batch::BatchOptions {
+                    jobs,
+                    template,
+                    track: track.then_some(scenes),
+                    ..Default::default()
+                },
+            )
+            .map(|_| ())
+        }),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

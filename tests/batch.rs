@@ -127,6 +127,73 @@ fn batch_reconstructs_skips_failures_and_reruns_only_what_changed() {
     assert!(mtime(&out.join("b/skin.obj")) > mtime(&trial));
     assert_eq!(mtime(&out.join("a/skin.obj")), before);
 
+    // Tracking: every subject's motion, with the bottle scene for it, into
+    // <subject>/motions/<motion>/; the reconstructions stay as they are (up to date), and each
+    // motion.json is the very file `ergohand track` writes for that subject and motion.
+    let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/bottle.toml");
+    let scene_arg = format!("grasp_bottle={}", scene.display());
+    let o = ergohand(&["batch", sd, "--out", od, "--track", "--scene", &scene_arg]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("| b | grasp_bottle |"),
+        "{}",
+        stderr(&o)
+    );
+    let j: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("batch-summary.json")).unwrap())
+            .unwrap();
+    for (k, name) in ["a", "b"].into_iter().enumerate() {
+        let row = &j["subjects"][k];
+        assert_eq!(row["status"], "skipped-up-to-date");
+        let m = &row["motions"][0];
+        assert_eq!(m["motion"], "grasp_bottle");
+        assert!(m["error"].is_null(), "{m}");
+        let truth: serde_json::Value = serde_json::from_str(
+            &std::fs::read_to_string(subjects.join(name).join("truth_motion/grasp_bottle.json"))
+                .unwrap(),
+        )
+        .unwrap();
+        assert_eq!(m["frames"], truth["frames"]);
+        let direct = dir.path().join(format!("direct-{name}"));
+        let o = ergohand(&[
+            "track",
+            subjects.join(name).to_str().unwrap(),
+            "--model",
+            out.join(name).to_str().unwrap(),
+            "--motion",
+            "grasp_bottle",
+            "--scene",
+            scene.to_str().unwrap(),
+            "--out",
+            direct.to_str().unwrap(),
+            "-q",
+        ]);
+        assert!(o.status.success(), "{}", stderr(&o));
+        let tracked = out.join(name).join("motions/grasp_bottle");
+        assert_eq!(
+            std::fs::read(tracked.join("motion.json")).unwrap(),
+            std::fs::read(direct.join("motion.json")).unwrap(),
+            "{name}: batch and track disagree"
+        );
+        assert!(tracked.join("motion.glb").is_file());
+    }
+    assert_eq!(mtime(&out.join("a/skin.obj")), before);
+    // --scene without --track, and a scene that is not there: usage errors before any work.
+    let o = ergohand(&["batch", sd, "--out", od, "--scene", &scene_arg]);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(stderr(&o).contains("--track"), "{}", stderr(&o));
+    let o = ergohand(&[
+        "batch",
+        sd,
+        "--out",
+        od,
+        "--track",
+        "--scene",
+        "x=nope.toml",
+    ]);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(stderr(&o).contains("nope.toml"), "{}", stderr(&o));
+
     // Bad use: --jobs 0, and a folder without subjects; one-line errors.
     let o = ergohand(&["batch", sd, "--out", od, "--jobs", "0"]);
     assert_eq!(o.status.code(), Some(1));

@@ -20,15 +20,24 @@
 //!   [`crate::io::atomic`], whose temporary names are unique per process *and* per write, so
 //!   concurrent writers (threads, or processes on a cluster sharing the cache) never share one.
 //! - **Outputs** are per subject (`DIR/<name>/`); the summary is written once, at the end.
+//!
+//! With tracking on ([`BatchOptions::track`]), every motion trial of every subject whose
+//! reconstruction stands (made now or up to date) is then replayed as `ergohand track` would
+//! ([`super::track_job`]) into `DIR/<name>/motions/<motion>/`, on the same pool. Motions are
+//! tracked again on every run: a trial takes seconds, and its outputs depend on the model, the
+//! scene and the trial, which a fingerprint of the subject's inputs alone would not cover.
 
 use super::reconstruct::{reconstruct_fingerprint, reconstruct_job};
+use super::track::track_job;
 use super::Voice;
 use crate::anatomy::Side;
 use crate::error::{Error, Result};
 use crate::io::atomic;
 use crate::mocap::subject::{Subject, SUBJECT_FILE};
 use crate::skin::pipeline::SkinOptions;
+use rayon::prelude::*;
 use serde::Serialize;
+use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::Mutex;
@@ -60,6 +69,89 @@ pub struct BatchOptions {
     pub skin: SkinOptions,
     /// The template folder every subject is reconstructed from (`None`: the generic hand).
     pub template: Option<PathBuf>,
+    /// Track every motion trial of every subject, with these scenes (`None`: no tracking).
+    pub track: Option<MotionScenes>,
+}
+
+/// The folder, under a subject's output folder, where its motions are tracked
+/// (`DIR/<name>/motions/<motion>/`).
+pub const MOTIONS_DIR: &str = "motions";
+
+/// Which scene's part each motion handles, for tracking in a batch: a scene per motion name
+/// (`grasp_bottle=scenes/bottle.toml`) and one for every other motion (a bare path). A motion
+/// with neither is tracked without a part (no contacts).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct MotionScenes {
+    /// By motion name.
+    pub by_motion: BTreeMap<String, PathBuf>,
+    /// For the motions not named in `by_motion`.
+    pub every: Option<PathBuf>,
+}
+
+impl MotionScenes {
+    /// Parse `--scene` values: `MOTION=SCENE.toml` or `SCENE.toml`. Errors name the value: a
+    /// motion given twice, two bare scenes, an empty name or path, a scene file that does not
+    /// exist.
+    pub fn parse<S: AsRef<str>>(values: &[S]) -> Result<MotionScenes> {
+        let mut out = MotionScenes::default();
+        for v in values {
+            let v = v.as_ref();
+            let (name, path) = match v.split_once('=') {
+                Some((n, p)) => (Some(n.trim()), p.trim()),
+                None => (None, v.trim()),
+            };
+            if path.is_empty() || name.is_some_and(str::is_empty) {
+                return Err(Error::invalid(format!(
+                    "--scene '{v}': give MOTION=SCENE.toml or SCENE.toml"
+                )));
+            }
+            let path = PathBuf::from(path);
+            if !path.is_file() {
+                return Err(Error::input(
+                    &path,
+                    format!("not found (--scene '{v}'); give an existing scene file"),
+                ));
+            }
+            let twice = match name {
+                Some(n) => out.by_motion.insert(n.to_string(), path).is_some(),
+                None => out.every.replace(path).is_some(),
+            };
+            if twice {
+                return Err(Error::invalid(format!(
+                    "--scene '{v}': a scene for {} is given twice",
+                    name.map_or("every motion".to_string(), |n| format!("motion '{n}'"))
+                )));
+            }
+        }
+        Ok(out)
+    }
+
+    /// The scene of motion `name`.
+    pub fn for_motion(&self, name: &str) -> Option<&Path> {
+        self.by_motion
+            .get(name)
+            .or(self.every.as_ref())
+            .map(PathBuf::as_path)
+    }
+}
+
+/// What became of one motion of a subject.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct MotionOutcome {
+    /// The motion's name (`[motions]` key; also its output folder's).
+    pub motion: String,
+    /// The scene its part came from, if any.
+    pub scene: Option<PathBuf>,
+    /// Frames in the trial (0 when it failed).
+    pub frames: usize,
+    /// Frames that could not be solved.
+    pub unsolved: usize,
+    /// Warnings of the tracking (see the motion's `motion.json`).
+    pub warnings: usize,
+    /// Wall time, s.
+    pub seconds: f64,
+    /// The one-line error of a failed motion.
+    pub error: Option<String>,
 }
 
 /// What became of one subject.
@@ -138,6 +230,9 @@ pub struct SubjectOutcome {
     pub error: Option<String>,
     /// Figures of its `report.json` (this run's, or the earlier one of a skipped subject).
     pub figures: Option<KeyFigures>,
+    /// Its motions, when tracking (in name order).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub motions: Vec<MotionOutcome>,
 }
 
 /// The whole batch.
@@ -167,6 +262,19 @@ impl BatchSummary {
             .iter()
             .filter(|s| s.status == Status::Failed)
             .map(|s| s.subject.as_str())
+            .collect()
+    }
+
+    /// The failed motions, as `subject/motion`.
+    pub fn failed_motions(&self) -> Vec<String> {
+        self.subjects
+            .iter()
+            .flat_map(|s| {
+                s.motions
+                    .iter()
+                    .filter(|m| m.error.is_some())
+                    .map(move |m| format!("{}/{}", s.subject, m.motion))
+            })
             .collect()
     }
 
@@ -206,6 +314,26 @@ impl BatchSummary {
                 k.warnings.map_or("-".into(), |w| w.to_string()),
                 s.error.as_deref().unwrap_or("").replace('|', "\\|"),
             ));
+        }
+        if self.subjects.iter().any(|s| !s.motions.is_empty()) {
+            md.push_str("\n## Motions\n\nTracked into `<subject>/motions/<motion>/` (motion.json, motion.glb and the trial's pictures and page).\n\n| subject | motion | scene | frames | solved | warnings | time (s) | error |\n|---|---|---|---|---|---|---|---|\n");
+            for s in &self.subjects {
+                for m in &s.motions {
+                    md.push_str(&format!(
+                        "| {} | {} | {} | {} | {} | {} | {:.1} | {} |\n",
+                        s.subject,
+                        m.motion,
+                        m.scene
+                            .as_ref()
+                            .map_or("-".into(), |p| p.display().to_string()),
+                        m.frames,
+                        m.frames - m.unsolved.min(m.frames),
+                        m.warnings,
+                        m.seconds,
+                        m.error.as_deref().unwrap_or("").replace('|', "\\|"),
+                    ));
+                }
+            }
         }
         md
     }
@@ -327,6 +455,7 @@ pub fn run(subjects_dir: &Path, out: &Path, opts: &BatchOptions) -> Result<Batch
                 seconds: 0.0,
                 error: None,
                 figures: KeyFigures::read(&sout.join("report.json")),
+                motions: Vec::new(),
             });
         } else {
             todo.push(i);
@@ -446,6 +575,7 @@ pub fn run(subjects_dir: &Path, out: &Path, opts: &BatchOptions) -> Result<Batch
                         None
                     },
                     error,
+                    motions: Vec::new(),
                 };
                 pb.set_message(name.clone());
                 pb.inc(1);
@@ -458,6 +588,9 @@ pub fn run(subjects_dir: &Path, out: &Path, opts: &BatchOptions) -> Result<Batch
     pb.finish_and_clear();
     for (i, row) in done.into_inner().unwrap_or_else(|p| p.into_inner()) {
         rows[i] = Some(row);
+    }
+    if let Some(scenes) = &opts.track {
+        track_motions(&subjects, out, scenes, &mut rows, &pool);
     }
     let summary = BatchSummary {
         subjects_dir: subjects_dir.to_path_buf(),
@@ -472,6 +605,109 @@ pub fn run(subjects_dir: &Path, out: &Path, opts: &BatchOptions) -> Result<Batch
     atomic::write_bytes_atomic(&out.join(SUMMARY_JSON), json.as_bytes())?;
     log::info!("{}", md.trim_end());
     Ok(summary)
+}
+
+/// Track every motion of every subject whose row is not failed into
+/// `out/<name>/motions/<motion>/` on `pool`, one motion per task, and put the outcomes in the
+/// rows. A subject folder that no longer loads, or a motion name that is not a plain folder
+/// name, gives a failed motion, never a failed batch.
+fn track_motions(
+    subjects: &[(String, PathBuf)],
+    out: &Path,
+    scenes: &MotionScenes,
+    rows: &mut [Option<SubjectOutcome>],
+    pool: &rayon::ThreadPool,
+) {
+    let mut tasks: Vec<(usize, String)> = Vec::new();
+    for (i, (_, dir)) in subjects.iter().enumerate() {
+        if rows[i].as_ref().is_some_and(|r| r.status != Status::Failed) {
+            if let Ok(s) = Subject::load(dir) {
+                tasks.extend(s.motions.keys().map(|m| (i, m.clone())));
+            }
+        }
+    }
+    if tasks.is_empty() {
+        log::info!("batch: no motions to track ([motions] of subject.toml)");
+        return;
+    }
+    log::info!("batch: tracking {} motions", tasks.len());
+    let pb = super::progress(tasks.len() as u64, "track");
+    let outcomes: Vec<(usize, MotionOutcome)> = pool.install(|| {
+        tasks
+            .par_iter()
+            .map(|(i, motion)| {
+                let (name, dir) = &subjects[*i];
+                let model = out.join(name);
+                let scene = scenes.for_motion(motion);
+                let t = Instant::now();
+                let result = if plain_folder_name(motion) {
+                    let mout = model.join(MOTIONS_DIR).join(motion);
+                    std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+                        track_job(dir, &model, motion, scene, &mout, Voice::Nested)
+                    }))
+                    .unwrap_or_else(|_| {
+                        Err(Error::invalid(format!(
+                            "{}: internal error while tracking {motion}; please report it",
+                            dir.display()
+                        )))
+                    })
+                } else {
+                    Err(Error::input(
+                        dir.join(SUBJECT_FILE),
+                        format!(
+                            "[motions] key '{motion}' is not a plain folder name, so it cannot \
+                             name its output folder; rename it (letters, digits, '_', '-', '.')"
+                        ),
+                    ))
+                };
+                let seconds = t.elapsed().as_secs_f64();
+                let outcome = match result {
+                    Ok(s) => MotionOutcome {
+                        motion: motion.clone(),
+                        scene: scene.map(Path::to_path_buf),
+                        frames: s.frames,
+                        unsolved: s.unsolved,
+                        warnings: s.warnings.len(),
+                        seconds,
+                        error: None,
+                    },
+                    Err(e) => {
+                        pb.suspend(|| log::error!("subject {name}, motion {motion} failed: {e}"));
+                        MotionOutcome {
+                            motion: motion.clone(),
+                            scene: scene.map(Path::to_path_buf),
+                            frames: 0,
+                            unsolved: 0,
+                            warnings: 0,
+                            seconds,
+                            error: Some(e.to_string()),
+                        }
+                    }
+                };
+                pb.set_message(format!("{name}/{motion}"));
+                pb.inc(1);
+                (*i, outcome)
+            })
+            .collect()
+    });
+    pb.finish_and_clear();
+    for (i, o) in outcomes {
+        if let Some(r) = rows[i].as_mut() {
+            r.motions.push(o);
+        }
+    }
+}
+
+/// Whether `name` can be used as a folder name as it is: not empty, not `.`/`..`, only
+/// letters, digits, `_`, `-` and `.` (no separators, nothing a shell or another system reads
+/// differently).
+fn plain_folder_name(name: &str) -> bool {
+    !name.is_empty()
+        && name != "."
+        && name != ".."
+        && name
+            .chars()
+            .all(|c| c.is_ascii_alphanumeric() || matches!(c, '_' | '-' | '.'))
 }
 
 /// The threads to use: `asked` (default: the cores) at most [`JOBS_PER_CORE`] x `cores` and at
@@ -495,7 +731,19 @@ pub(crate) fn clamp_jobs(
 pub(crate) fn remove_stale_temporaries(out: &Path, subjects: &[(String, PathBuf)]) -> Vec<PathBuf> {
     let now = SystemTime::now();
     let mut removed = Vec::new();
-    let folders = std::iter::once(out.to_path_buf()).chain(subjects.iter().map(|s| out.join(&s.0)));
+    // The batch folder, each subject's folder, and each of its tracked motions' folders.
+    let motion_folders = |sub: PathBuf| {
+        std::fs::read_dir(sub.join(MOTIONS_DIR))
+            .into_iter()
+            .flatten()
+            .flatten()
+            .map(|e| e.path())
+            .filter(|p| p.is_dir())
+            .chain(std::iter::once(sub))
+            .collect::<Vec<_>>()
+    };
+    let folders = std::iter::once(out.to_path_buf())
+        .chain(subjects.iter().flat_map(|s| motion_folders(out.join(&s.0))));
     for dir in folders {
         let Ok(entries) = std::fs::read_dir(&dir) else {
             continue;
@@ -525,8 +773,26 @@ pub(crate) fn remove_stale_temporaries(out: &Path, subjects: &[(String, PathBuf)
 pub fn batch(subjects_dir: &Path, out: &Path, opts: &BatchOptions) -> Result<BatchSummary> {
     let summary = run(subjects_dir, out, opts)?;
     let failed = summary.failed();
-    if failed.is_empty() {
+    let failed_motions = summary.failed_motions();
+    if failed.is_empty() && failed_motions.is_empty() {
         return Ok(summary);
+    }
+    if failed.is_empty() {
+        let mut names = failed_motions
+            .iter()
+            .take(10)
+            .cloned()
+            .collect::<Vec<_>>()
+            .join(", ");
+        if failed_motions.len() > 10 {
+            names.push_str(&format!(" and {} more", failed_motions.len() - 10));
+        }
+        return Err(Error::invalid(format!(
+            "batch: {} motions could not be tracked ({names}); the subjects and other motions \
+             are done, see {}",
+            failed_motions.len(),
+            out.join(SUMMARY_MD).display()
+        )));
     }
     let mut names = failed
         .iter()

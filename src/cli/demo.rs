@@ -1,9 +1,11 @@
 //! `ergohand demo`: every stage on the default subject.
 
-use super::grasp::demo_bottle;
+use super::batch::MOTIONS_DIR;
+use super::grasp::{demo_bottle, demo_bottle_scene};
 use super::pose::{pose_job, PoseOptions};
 use super::reconstruct::reconstruct_job;
 use super::template::template;
+use super::track::track_job;
 use super::validate::validate_job;
 use super::{create_dir, Voice};
 use crate::anatomy::Side;
@@ -13,9 +15,13 @@ use crate::synth::{self, SynthOptions};
 use std::path::Path;
 use std::time::Instant;
 
-/// The default subject of the demo: seed 1, typical errors, right hand.
+/// The default subject of the demo: seed 1, typical errors, right hand, with its grasp of the
+/// bottle captured.
 pub fn default_subject_options() -> SynthOptions {
-    SynthOptions::new(1, synth::Preset::Typical)
+    SynthOptions {
+        motion_s: Some(synth::grasp_motion::DEFAULT_MOTION_S),
+        ..SynthOptions::new(1, synth::Preset::Typical)
+    }
 }
 
 /// `ergohand demo`: every stage that exists, on the default subject, into `out`.
@@ -45,6 +51,20 @@ pub fn demo(out: &Path) -> Result<()> {
         Voice::Nested,
     )?;
     let link_s = t2.elapsed().as_secs_f64();
+    // The captured grasp replayed with the subject's own hand, where `validate` finds it.
+    let t3 = Instant::now();
+    let scene = demo_bottle_scene(&out.join("grasp"))?;
+    let motion = "grasp_bottle";
+    let track_dir = model_dir.join(MOTIONS_DIR).join(motion);
+    let tracked = track_job(
+        &subject_dir,
+        &model_dir,
+        motion,
+        Some(&scene),
+        &track_dir,
+        Voice::Nested,
+    )?;
+    let track_s = t3.elapsed().as_secs_f64();
     let v = validate_job(&subject_dir, &model_dir, &report_dir, Voice::Nested)?;
     let fist = pose_job(
         &model_dir,
@@ -57,7 +77,7 @@ pub fn demo(out: &Path) -> Result<()> {
     let (acc, surface) = v.against_references(&subject_dir)?;
     if super::show_summaries() {
         println!(
-            "ergohand demo: stages run: template, synth, link model, skin (sections 3.5-3.6), tetrahedral mesh, skinned hand, validation report, pose, grasp"
+            "ergohand demo: stages run: template, synth, link model, skin (sections 3.5-3.6), tetrahedral mesh, skinned hand, track, validation report, pose, grasp"
         );
         for h in &t.hands {
             let (lo, hi) = h.mesh.bounds().expect("non-empty template");
@@ -129,6 +149,14 @@ pub fn demo(out: &Path) -> Result<()> {
             grasp.timings_s.total_s,
             out.join("grasp").join("grasp.json").display()
         );
+        println!(
+            "  track of the captured grasp `{motion}` with the reconstructed hand: {} of {} frames solved, {} warnings, {:.1} s; {}",
+            tracked.frames - tracked.unsolved,
+            tracked.frames,
+            tracked.warnings.len(),
+            track_s,
+            tracked.written.display()
+        );
         println!("  files:");
         for f in &t.files {
             println!("    {}", f.display());
@@ -138,6 +166,7 @@ pub fn demo(out: &Path) -> Result<()> {
             subject_dir.display()
         );
         println!("    {}", model_dir.join("link_model.json").display());
+        println!("    {}/ (motion.json, motion.glb)", track_dir.display());
         for f in [
             "skin.obj",
             "tet.vtk",

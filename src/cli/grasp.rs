@@ -6,7 +6,7 @@ use crate::grasp::contact::ContactOptions;
 use crate::grasp::{contact_colours, load_hand, run_scene, scene, GraspOutcome, GraspReport};
 use crate::io::output_paths::{check_output_dir, Inputs};
 use crate::io::Units;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 /// Write `grasp.json`, `grasp.glb` and `contact_map.png` of an outcome into `out`.
 pub(crate) fn write_outputs(o: &GraspOutcome, out: &Path) -> Result<()> {
@@ -109,6 +109,13 @@ fn grasp_job(scene: &Path, model: Option<&Path>, out: &Path) -> Result<GraspRepo
 /// part (generated, [`crate::grasp::parts::Part::Bottle`]) into `out`, then grasps it with the hand of the
 /// `reconstruct` folder `model_dir` ([`grasp`]), outputs in `out`.
 pub fn demo_bottle(model_dir: &Path, out: &Path) -> Result<GraspReport> {
+    let scene = demo_bottle_scene(out)?;
+    grasp_job(&scene, Some(model_dir), out)
+}
+
+/// Write the shipped bottle scene and its part into `out` (`bottle.toml`, `bottle.stl`) and
+/// return the scene's path.
+pub(crate) fn demo_bottle_scene(out: &Path) -> Result<PathBuf> {
     std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
     let scene = out.join("bottle.toml");
     crate::io::atomic::write_bytes_atomic(
@@ -120,5 +127,5 @@ pub fn demo_bottle(model_dir: &Path, out: &Path) -> Result<GraspReport> {
         &crate::grasp::parts::Part::Bottle.mesh()?,
         Units::Millimetres,
     )?;
-    grasp_job(&scene, Some(model_dir), out)
+    Ok(scene)
 }
