@@ -9,19 +9,26 @@
 //! centre and a translation, applied as increments) and each joint's angles, with the DOF the
 //! link model gives it ([`Kinematics`]); at most 34. Each frame minimises
 //!
-//! `Σ_markers ρ(|T_link(x)·m_ref − m_obs|) + λ_s |x − x_pred|² + λ_l Σ excess(x)²`
+//! `Σ_markers ρ(|T_link(x)·m_ref − m_obs|) + λ_s |x − x_pred|² + λ_l Σ excess(x)² + λ_c Σ c(x)²`
 //!
 //! by Levenberg-Marquardt on dense normal equations (34 × 34, Cholesky) with analytic
 //! Jacobians (every DOF a world axis through a world centre). `ρ` is Huber's (iteratively
 //! reweighted), `x_pred` the previous frame extrapolated at constant velocity (the warm start
 //! and the temporal term: with the default small `λ_s` it only holds directions the markers do
 //! not determine and does not bias the rest), `excess` how far an angle is beyond its
-//! anatomical range ([`crate::skeleton::joint_limits_deg`]) widened by a margin (soft limits).
+//! anatomical range ([`crate::skeleton::joint_limits_deg`]) widened by a margin (soft limits),
+//! and `c` the coupling terms of joints the markers do not determine (below).
 //!
 //! Robustness, per frame:
 //! * gaps: a missing sample is left out; a joint none of whose distal markers is seen keeps its
-//!   previous angles (held), as does a whole digit with fewer than two markers seen; the wrist
-//!   is held without two forearm markers. Held joints are reported.
+//!   previous angles (held), as does a whole digit without markers (and the thumb with fewer
+//!   than two); the wrist is held without two forearm markers. A finger is not held where the
+//!   hand's coupling tells what the markers do not: its DIP without a marker distal to it
+//!   follows its PIP (the DIP-PIP coupling of the flexing finger, `Δθ_DIP = k Δθ_PIP` from the
+//!   last solved frame, k = 2/3 after Rijpkema & Girard 1991), and a finger with a single marker
+//!   keeps the MCP's abduction and axial angles of the last solved frame, so that the marker
+//!   fixes the MCP and PIP flexions. Both are soft terms (`λ_c`); held and coupled joints are
+//!   reported.
 //! * outliers and swapped labels: a marker farther than `jump_mm` (per frame since the last
 //!   solved one) from where the prediction puts it is left out of the first solve; afterwards
 //!   every seen marker within `gate_mm` of the fit is let in and the worst one beyond is
@@ -72,6 +79,11 @@ pub struct IkOptions {
     pub max_iterations: usize,
     /// Longest gap in the part's markers bridged by interpolating its pose, s.
     pub part_gap_s: f64,
+    /// Weight of the coupling terms, mm² per rad².
+    pub coupling_weight: f64,
+    /// A finger's DIP flexion follows its PIP flexion by this ratio where no marker is distal
+    /// to the DIP (`Δθ_DIP = k Δθ_PIP`).
+    pub dip_pip_coupling: f64,
 }
 
 impl Default for IkOptions {
@@ -88,6 +100,8 @@ impl Default for IkOptions {
             min_digit_markers: 2,
             max_iterations: 40,
             part_gap_s: 0.5,
+            coupling_weight: 1e3,
+            dip_pip_coupling: 2.0 / 3.0,
         }
     }
 }
@@ -104,6 +118,9 @@ pub struct FrameSolution {
     pub rejected: Vec<usize>,
     /// Joints whose angles were held (too few markers distal to them).
     pub held: Vec<Joint>,
+    /// Joints whose angles (a DIP) or whose MCP's abduction and axial angles (an MCP) followed
+    /// the coupling terms instead of markers.
+    pub coupled: Vec<Joint>,
     /// Levenberg-Marquardt iterations spent.
     pub iterations: usize,
 }
@@ -252,6 +269,7 @@ impl<'a> Solver<'a> {
             residual_mm: vec![None; n],
             rejected: Vec::new(),
             held: Vec::new(),
+            coupled: Vec::new(),
             iterations: 0,
         };
         let palm_seen = (0..n)
@@ -289,9 +307,10 @@ impl<'a> Solver<'a> {
             }
         };
         let mut held = Vec::new();
+        let mut coupled = Vec::new();
         let mut fit = inlier.clone();
         for _round in 0..8 {
-            held = self.held_joints(&inlier);
+            (held, coupled) = self.held_joints(&inlier);
             let mut start = state.clone();
             for &j in &held {
                 start.angles[j.index()] = hold_from.angles[j.index()];
@@ -300,7 +319,12 @@ impl<'a> Solver<'a> {
             // would pull the palm and the joints that are solved.
             let on_held = self.on_held(&held);
             fit = (0..n).map(|i| inlier[i] && !on_held[i]).collect();
-            let (s, it) = self.solve(start, obs, &fit, &held, prior.map(|p| &p.predicted));
+            let con = Constraints {
+                held: &held,
+                coupled: &coupled,
+                anchor: Some(&hold_from),
+            };
+            let (s, it) = self.solve(start, obs, &fit, &con, prior.map(|p| &p.predicted));
             iterations += it;
             state = s;
             // Let in every seen marker that fits; drop the worst that does not (markers on
@@ -324,7 +348,18 @@ impl<'a> Solver<'a> {
                     Some(p) => (Some(&p.predicted), &p.suspect[..]),
                     None => (None, &[][..]),
                 };
-                changed = self.readmit(&mut inlier, &state, obs, pred, suspect);
+                // A group is stale when the last frame did not solve it (or is not the frame
+                // before): only then may its prediction be wrong enough to have kept a good
+                // marker out. A group solved in the frame before predicts well, and a marker
+                // that jumped past the gate from there is a swapped label or a stray sample.
+                let stale = |g: Option<Finger>| match prior {
+                    Some(p) if p.frames_since == 1 => match g {
+                        None => p.held.contains(&Joint::Wrist),
+                        Some(f) => f.joints().iter().any(|j| p.held.contains(j)),
+                    },
+                    _ => true,
+                };
+                changed = self.readmit(&mut inlier, &state, obs, pred, &hold_from, suspect, &stale);
             }
             if !changed {
                 let worst = (0..n)
@@ -368,6 +403,7 @@ impl<'a> Solver<'a> {
             residual_mm,
             rejected,
             held,
+            coupled,
             iterations,
         }
     }
@@ -379,21 +415,24 @@ impl<'a> Solver<'a> {
     /// of the digit's markers lies within `gate_mm` and their RMS within `huber_mm`. With two
     /// markers on a digit of five DOF even a swapped label fits, so a marker rejected and not
     /// accepted since (suspect) comes back only in a group of three or more markers on the
-    /// digit, where a swapped one cannot. Returns whether any group was let in.
+    /// digit, where a swapped one cannot. Only groups that are `stale` are considered.
+    /// Returns whether any group was let in.
     fn readmit(
         &self,
         inlier: &mut [bool],
         state: &HandState,
         obs: &[Option<Point>],
         pred: Option<&HandState>,
+        anchor: &HandState,
         suspect: &[bool],
+        stale: &dyn Fn(Option<Finger>) -> bool,
     ) -> bool {
         let n = inlier.len();
-        let on_held = self.on_held(&self.held_joints(inlier));
+        let on_held = self.on_held(&self.held_joints(inlier).0);
         let mut any = false;
         // `None`: the forearm's markers (the palm's are never on a held link).
         let groups = [None].into_iter().chain(Finger::ALL.map(Some));
-        for g in groups {
+        for g in groups.filter(|&g| stale(g)) {
             let member = |i: usize| on_held[i] && self.digit[i] == g;
             let is_suspect = |i: usize| suspect.get(i).copied().unwrap_or(false);
             let mut candidates: Vec<usize> = (0..n)
@@ -418,13 +457,18 @@ impl<'a> Solver<'a> {
             if candidates.is_empty() {
                 continue;
             }
-            let held = self.held_joints(&trial);
+            let (held, coupled) = self.held_joints(&trial);
             let still_held = self.on_held(&held);
             let fit: Vec<bool> = (0..n).map(|i| trial[i] && !still_held[i]).collect();
             if candidates.iter().all(|&i| still_held[i]) {
                 continue;
             }
-            let (s, _) = self.solve(state.clone(), obs, &fit, &held, pred);
+            let con = Constraints {
+                held: &held,
+                coupled: &coupled,
+                anchor: Some(anchor),
+            };
+            let (s, _) = self.solve(state.clone(), obs, &fit, &con, pred);
             let res = self.residuals(&self.kin.evaluate(&s), obs);
             // Every marker of the digit, not only the candidates: a swapped label fits only by
             // pulling the digit off its other markers.
@@ -471,10 +515,16 @@ impl<'a> Solver<'a> {
         obs: &[Option<Point>],
         use_: &[bool],
     ) -> (HandState, usize) {
-        let held = self.held_joints(use_);
+        let (held, coupled) = self.held_joints(use_);
         let on_held = self.on_held(&held);
         let fit: Vec<bool> = (0..use_.len()).map(|i| use_[i] && !on_held[i]).collect();
         let use_ = &fit[..];
+        // A fresh start has no last frame: the coupling is taken from the static posture.
+        let con = Constraints {
+            held: &held,
+            coupled: &coupled,
+            anchor: None,
+        };
         let mut best: [(f64, [[f64; 3]; 3]); 5] = [(f64::INFINITY, [[0.0; 3]; 3]); 5];
         let mut palm = start.palm;
         let mut wrist = [0.0; 3];
@@ -485,7 +535,7 @@ impl<'a> Solver<'a> {
             for j in &Joint::ALL[1..] {
                 s.angles[j.index()][0] = flex.to_radians();
             }
-            let (s, it) = self.solve(s, obs, use_, &held, None);
+            let (s, it) = self.solve(s, obs, use_, &con, None);
             iterations += it;
             let e = self.kin.evaluate(&s);
             let res = self.residuals(&e, obs);
@@ -521,14 +571,18 @@ impl<'a> Solver<'a> {
                 s.angles[j.index()] = best[f as usize].1[k];
             }
         }
-        let (s, it) = self.solve(s, obs, use_, &held, None);
+        let (s, it) = self.solve(s, obs, use_, &con, None);
         (s, iterations + it)
     }
 
-    /// Joints to hold given the markers in use: a digit with fewer than
-    /// [`IkOptions::min_digit_markers`] markers entirely; otherwise each joint with no marker
-    /// on its child link or beyond; the wrist without two forearm markers.
-    fn held_joints(&self, use_: &[bool]) -> Vec<Joint> {
+    /// Joints to hold given the markers in use, and the fingers' joints that follow the
+    /// coupling terms instead ([`Constraints`]). A digit without markers is held entirely, as
+    /// is the thumb with fewer than [`IkOptions::min_digit_markers`]; otherwise each joint with
+    /// no marker on its child link or beyond is held, except a finger's DIP whose PIP is
+    /// solved (coupled); a finger with fewer than `min_digit_markers` markers has its MCP
+    /// coupled (abduction and axial kept) and its DIP coupled wherever its marker is. The
+    /// wrist is held without two forearm markers.
+    fn held_joints(&self, use_: &[bool]) -> (Vec<Joint>, Vec<Joint>) {
         let mut per_link = [0usize; 17];
         for (i, m) in self.att.markers.iter().enumerate() {
             if use_[i] {
@@ -536,6 +590,7 @@ impl<'a> Solver<'a> {
             }
         }
         let mut held = Vec::new();
+        let mut coupled = Vec::new();
         if per_link[Link::Arm.index()] < 2 {
             held.push(Joint::Wrist);
         }
@@ -543,14 +598,64 @@ impl<'a> Solver<'a> {
             let links = f.links();
             let on: Vec<usize> = links.iter().map(|l| per_link[l.index()]).collect();
             let total: usize = on.iter().sum();
-            for (k, j) in f.joints().iter().enumerate() {
-                let distal: usize = on[k..].iter().sum();
-                if total < self.opts.min_digit_markers || distal == 0 {
+            let joints = f.joints();
+            let finger = f != Finger::Thumb;
+            if total == 0 || (!finger && total < self.opts.min_digit_markers) {
+                held.extend(joints);
+                continue;
+            }
+            // One marker leaves three flexions for the two coordinates it gives in the
+            // finger's plane: the DIP follows the PIP even when the marker is beyond it.
+            let one = finger && total < self.opts.min_digit_markers;
+            if one {
+                coupled.push(joints[0]);
+            }
+            for (k, j) in joints.iter().enumerate() {
+                let seen_beyond = on[k..].iter().sum::<usize>() > 0;
+                if seen_beyond && !(one && k == 2) {
+                    continue;
+                }
+                if finger && k == 2 && !held.contains(&joints[1]) {
+                    coupled.push(*j);
+                } else if !seen_beyond {
                     held.push(*j);
                 }
             }
         }
-        held
+        (held, coupled)
+    }
+
+    /// The coupling terms of `con` at `s`: each a residual (rad) and its coefficients on the
+    /// parameters (the terms are linear in the angles). A coupled DIP: `(θ_DIP − a_DIP) −
+    /// k (θ_PIP − a_PIP)`; a coupled MCP: its abduction and axial angles minus the anchor's
+    /// (`a`: the anchor's angles, or zero, the static posture, without one).
+    fn coupling_terms(&self, s: &HandState, con: &Constraints) -> Vec<(f64, [(usize, f64); 2])> {
+        let a = |j: Joint, d: usize| con.anchor.map_or(0.0, |h| h.angles[j.index()][d]);
+        let k = self.opts.dip_pip_coupling;
+        let mut out = Vec::new();
+        for &j in con.coupled {
+            let Some(f) = j.finger() else { continue };
+            let [mcp, pip, dip] = f.joints();
+            if j == dip {
+                let (Some(kd), Some(kp)) = (
+                    self.kin.param[dip.index()][0],
+                    self.kin.param[pip.index()][0],
+                ) else {
+                    continue;
+                };
+                let r = (s.angles[dip.index()][0] - a(dip, 0))
+                    - k * (s.angles[pip.index()][0] - a(pip, 0));
+                out.push((r, [(kd, 1.0), (kp, -k)]));
+            } else if j == mcp {
+                for d in 1..3 {
+                    if let Some(km) = self.kin.param[mcp.index()][d] {
+                        let r = s.angles[mcp.index()][d] - a(mcp, d);
+                        out.push((r, [(km, 1.0), (km, 0.0)]));
+                    }
+                }
+            }
+        }
+        out
     }
 
     /// Per marker: whether one of the `held` joints moves its link relative to the palm (the
@@ -596,12 +701,13 @@ impl<'a> Solver<'a> {
     }
 
     /// The objective at `s`: robust marker terms, the temporal term toward `pred`, the soft
-    /// limits.
+    /// limits, the coupling terms of `con`.
     fn cost(
         &self,
         s: &HandState,
         obs: &[Option<Point>],
         use_: &[bool],
+        con: &Constraints,
         pred: Option<&HandState>,
     ) -> f64 {
         let e = self.kin.evaluate(s);
@@ -617,6 +723,9 @@ impl<'a> Solver<'a> {
             if let Some(x) = self.excess(s, k) {
                 c += self.opts.limit_weight * x * x;
             }
+        }
+        for (r, _) in self.coupling_terms(s, con) {
+            c += self.opts.coupling_weight * r * r;
         }
         c
     }
@@ -664,19 +773,20 @@ impl<'a> Solver<'a> {
         s.angles[j][d]
     }
 
-    /// Levenberg-Marquardt from `start` on the markers in `use_`, `held` joints fixed.
+    /// Levenberg-Marquardt from `start` on the markers in `use_`, the held joints of `con`
+    /// fixed and its coupled ones tied.
     fn solve(
         &self,
         start: HandState,
         obs: &[Option<Point>],
         use_: &[bool],
-        held: &[Joint],
+        con: &Constraints,
         pred: Option<&HandState>,
     ) -> (HandState, usize) {
         let np = self.kin.n_params;
         let mut free = [true; MAX_PARAMS];
         free[np..].fill(false);
-        for j in held {
+        for j in con.held {
             for d in 0..3 {
                 if let Some(k) = self.kin.param[j.index()][d] {
                     free[k] = false;
@@ -684,12 +794,12 @@ impl<'a> Solver<'a> {
             }
         }
         let mut s = start;
-        let mut cost = self.cost(&s, obs, use_, pred);
+        let mut cost = self.cost(&s, obs, use_, con, pred);
         let mut mu = 1e-4;
         let mut it = 0;
         while it < self.opts.max_iterations {
             it += 1;
-            let (h, g) = self.normal_equations(&s, obs, use_, pred, &free);
+            let (h, g) = self.normal_equations(&s, obs, use_, con, pred, &free);
             let mut accepted = false;
             let mut step_norm = 0.0;
             for _ in 0..12 {
@@ -703,7 +813,7 @@ impl<'a> Solver<'a> {
                 };
                 let delta = -ch.solve(&g);
                 let trial = self.kin.step(&s, delta.as_slice());
-                let c = self.cost(&trial, obs, use_, pred);
+                let c = self.cost(&trial, obs, use_, con, pred);
                 if c.is_finite() && c <= cost {
                     step_norm = delta.amax();
                     accepted = c < cost || step_norm == 0.0;
@@ -727,6 +837,7 @@ impl<'a> Solver<'a> {
         s: &HandState,
         obs: &[Option<Point>],
         use_: &[bool],
+        con: &Constraints,
         pred: Option<&HandState>,
         free: &[bool; MAX_PARAMS],
     ) -> (Mat, Col) {
@@ -787,6 +898,15 @@ impl<'a> Solver<'a> {
                 g[k] += self.opts.limit_weight * x;
             }
         }
+        let wc = self.opts.coupling_weight;
+        for (r, row) in self.coupling_terms(s, con) {
+            for &(ka, ca) in &row {
+                g[ka] += wc * ca * r;
+                for &(kb, cb) in &row {
+                    h[(ka, kb)] += wc * ca * cb;
+                }
+            }
+        }
         for k in 0..MAX_PARAMS {
             if !free[k] {
                 for l in 0..MAX_PARAMS {
@@ -799,6 +919,15 @@ impl<'a> Solver<'a> {
         }
         (h, g)
     }
+}
+
+/// What a solve keeps fixed and what it ties: the held joints, the coupled ones
+/// ([`Solver::held_joints`]) and the state their coupling is measured from (the last solved
+/// frame; `None`: the static posture).
+struct Constraints<'c> {
+    held: &'c [Joint],
+    coupled: &'c [Joint],
+    anchor: Option<&'c HandState>,
 }
 
 /// The state one frame after `b` at the rate from `a` to `b`.

@@ -2,6 +2,8 @@
 //! reconstructed link model.
 //!
 //! * [`attachment`]: each marker's link and its place on it, from the static trial.
+//! * [`cluster_calibration`]: markers the static trial lacks (the forearm plate), attached from
+//!   the motion's first second.
 //! * [`kinematics`]: the link model moved by the palm's pose and the joint angles, with
 //!   analytic derivatives.
 //! * [`inverse_kinematics`]: the per-frame robust Levenberg-Marquardt fit.
@@ -16,6 +18,7 @@
 //! subject folder and the model folder and writes `motion.json`.
 
 pub mod attachment;
+pub mod cluster_calibration;
 pub mod contacts;
 pub mod fixture;
 pub mod inverse_kinematics;
@@ -78,7 +81,7 @@ pub fn track_trial(
     part: Option<&PartSetup>,
     opts: &IkOptions,
 ) -> Result<Tracked> {
-    let attachment = Attachment::from_static(&kin.skeleton, static_trial);
+    let mut attachment = Attachment::from_static(&kin.skeleton, static_trial);
     let palm: Vec<&str> = attachment
         .markers
         .iter()
@@ -117,6 +120,17 @@ pub fn track_trial(
         ));
     }
     let mut warnings = Vec::new();
+    // Markers on a link that the static trial lacks: attached from the motion's first second
+    // by the markers that are attached.
+    let new: Vec<(String, Link)> = motion
+        .labels
+        .iter()
+        .filter(|l| attachment.index_of(l).is_none())
+        .filter(|l| !(part.is_some_and(|p| p.markers.contains_key(*l))))
+        .filter_map(|l| rides_on(l).map(|link| (l.clone(), link)))
+        .collect();
+    let window = (motion.frame_rate.max(1.0)).round() as usize;
+    cluster_calibration::attach_from_motion(&mut attachment, kin, motion, &new, window, opts);
     let ignored: Vec<&str> = motion
         .labels
         .iter()
@@ -126,8 +140,8 @@ pub fn track_trial(
         .collect();
     if !ignored.is_empty() {
         warnings.push(format!(
-            "{}: markers {} are not attached (not in the static trial {}, or on no link) and \
-             are ignored",
+            "{}: markers {} are not attached (not in the static trial {} nor seen with their \
+             link's pose in the motion's first second, or on no link) and are ignored",
             motion.source.display(),
             ignored.join(", "),
             static_trial.source.display()
@@ -163,6 +177,27 @@ pub fn track_trial(
                 motion.source.display(),
                 held.len(),
                 ranges(&held)
+            ));
+        }
+    }
+    for j in Joint::ALL {
+        let coupled: Vec<usize> = (0..frames.len())
+            .filter(|&f| frames[f].state.is_some() && frames[f].coupled.contains(&j))
+            .collect();
+        if !coupled.is_empty() {
+            let how = if j.rank() == 2 {
+                format!(
+                    "followed its PIP (DIP-PIP coupling {:.2})",
+                    opts.dip_pip_coupling
+                )
+            } else {
+                "kept its abduction and axial angles (one marker on the finger)".to_string()
+            };
+            warnings.push(format!(
+                "{}: joint {j} {how} for want of markers in {} frames: {}",
+                motion.source.display(),
+                coupled.len(),
+                ranges(&coupled)
             ));
         }
     }
@@ -275,6 +310,11 @@ impl Tracked {
                     .collect(),
                 held_frames: (0..n)
                     .filter(|&f| self.frames[f].state.is_some() && self.frames[f].held.contains(&j))
+                    .collect(),
+                coupled_frames: (0..n)
+                    .filter(|&f| {
+                        self.frames[f].state.is_some() && self.frames[f].coupled.contains(&j)
+                    })
                     .collect(),
             };
             joints.insert(j.name().to_string(), track);

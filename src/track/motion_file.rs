@@ -1,7 +1,7 @@
 //! `motion.json` (spec section 5): joint centres in the lab frame per frame (null where the
 //! frame is unsolved), joint angles in degrees, each marker's residual, and contacts; with
-//! extensions a reader may ignore: the unsolved frames, the frames each joint was held and
-//! each marker rejected, the part's pose and the warnings.
+//! extensions a reader may ignore: the unsolved frames, the frames each joint was held or
+//! coupled and each marker rejected, the part's pose and the warnings.
 
 use crate::anatomy::Joint;
 use crate::error::Result;
@@ -21,6 +21,10 @@ pub struct JointTrack {
     /// Frames whose angles were held from the frame before for want of markers.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub held_frames: Vec<usize>,
+    /// Frames whose angles followed the hand's coupling for want of markers (a DIP following
+    /// its PIP; an MCP keeping its abduction and axial angles).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub coupled_frames: Vec<usize>,
 }
 
 /// One contact of a link with the part in one frame.
