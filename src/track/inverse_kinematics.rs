@@ -344,22 +344,7 @@ impl<'a> Solver<'a> {
                 }
             }
             if !changed {
-                let (pred, suspect) = match prior {
-                    Some(p) => (Some(&p.predicted), &p.suspect[..]),
-                    None => (None, &[][..]),
-                };
-                // A group is stale when the last frame did not solve it (or is not the frame
-                // before): only then may its prediction be wrong enough to have kept a good
-                // marker out. A group solved in the frame before predicts well, and a marker
-                // that jumped past the gate from there is a swapped label or a stray sample.
-                let stale = |g: Option<Finger>| match prior {
-                    Some(p) if p.frames_since == 1 => match g {
-                        None => p.held.contains(&Joint::Wrist),
-                        Some(f) => f.joints().iter().any(|j| p.held.contains(j)),
-                    },
-                    _ => true,
-                };
-                changed = self.readmit(&mut inlier, &state, obs, pred, &hold_from, suspect, &stale);
+                changed = self.readmit(&mut inlier, &state, obs, prior, &hold_from);
             }
             if !changed {
                 let worst = (0..n)
@@ -415,18 +400,30 @@ impl<'a> Solver<'a> {
     /// of the digit's markers lies within `gate_mm` and their RMS within `huber_mm`. With two
     /// markers on a digit of five DOF even a swapped label fits, so a marker rejected and not
     /// accepted since (suspect) comes back only in a group of three or more markers on the
-    /// digit, where a swapped one cannot. Only groups that are `stale` are considered.
-    /// Returns whether any group was let in.
+    /// digit, where a swapped one cannot. Only a group whose prediction is stale is
+    /// considered: one the frame before `prior` did not solve (or that is not the frame
+    /// before). A group solved in the frame before predicts well, and a marker that jumped
+    /// past the gate from there is a swapped label or a stray sample. Returns whether any
+    /// group was let in.
     fn readmit(
         &self,
         inlier: &mut [bool],
         state: &HandState,
         obs: &[Option<Point>],
-        pred: Option<&HandState>,
+        prior: Option<&Prior>,
         anchor: &HandState,
-        suspect: &[bool],
-        stale: &dyn Fn(Option<Finger>) -> bool,
     ) -> bool {
+        let (pred, suspect) = match prior {
+            Some(p) => (Some(&p.predicted), &p.suspect[..]),
+            None => (None, &[][..]),
+        };
+        let stale = |g: Option<Finger>| match prior {
+            Some(p) if p.frames_since == 1 => match g {
+                None => p.held.contains(&Joint::Wrist),
+                Some(f) => f.joints().iter().any(|j| p.held.contains(j)),
+            },
+            _ => true,
+        };
         let n = inlier.len();
         let on_held = self.on_held(&self.held_joints(inlier).0);
         let mut any = false;

@@ -303,9 +303,9 @@ fn a_finger_with_one_marker_follows_the_coupling_and_is_flagged() {
     let gap_error = |opts: &IkOptions| -> (f64, Tracked) {
         let tracked = track_trial(&kin, &st, &motion, None, opts).unwrap();
         let mut worst = 0.0f64;
-        for f in 40..80 {
-            let s = tracked.frames[f].state.as_ref().unwrap();
-            let (cs, ct) = (kin.centres(s), kin.centres(&truth[f]));
+        for (fr, t) in tracked.frames[40..80].iter().zip(&truth[40..80]) {
+            let s = fr.state.as_ref().unwrap();
+            let (cs, ct) = (kin.centres(s), kin.centres(t));
             for j in ring {
                 worst = worst.max((cs[j.index()] - ct[j.index()]).norm());
             }
