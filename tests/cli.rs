@@ -425,6 +425,14 @@ fn track_the_grasp_trial(subj: &Path, model: &Path, out: &Path) {
         map.meshes[0].mesh.n_vertices(),
         glb.meshes[0].mesh.n_vertices()
     );
+    // The same counts through an independent reader: COLOR_0 as long as POSITION.
+    let peer = gltf::Gltf::open(out.join("contact_map.glb")).unwrap();
+    for mesh in peer.meshes() {
+        for p in mesh.primitives() {
+            let n = p.get(&gltf::Semantic::Positions).unwrap().count();
+            assert_eq!(p.get(&gltf::Semantic::Colors(0)).unwrap().count(), n);
+        }
+    }
     let grey = |c: &[f32; 4]| c[0] == c[1] && c[1] == c[2];
     for m in &map.meshes {
         let touched = m

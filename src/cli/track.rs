@@ -200,14 +200,13 @@ pub(crate) fn track_job(
             |n| n.to_string_lossy().into_owned()
         )
     );
-    let mut sources = vec![
-        subject
-            .dir
-            .join(&subject.motions[motion])
-            .display()
-            .to_string(),
-        model_dir.join("link_model.json").display().to_string(),
-    ];
+    let mut sources: Vec<String> = subject
+        .motions
+        .get(motion)
+        .map(|p| subject.dir.join(p).display().to_string())
+        .into_iter()
+        .collect();
+    sources.push(model_dir.join("link_model.json").display().to_string());
     if let Some(s) = &scene {
         sources.push(s.path.display().to_string());
     }
