@@ -413,6 +413,60 @@ fn track_the_grasp_trial(subj: &Path, model: &Path, out: &Path) {
         assert!(d < 1e-3, "frame {f}: glb part {d} mm from motion.json");
     }
 
+    // The contact map, the charts and the page: the map's GLB carries one colour per vertex
+    // of the hand and of the bottle, the hand's thumb touched (not grey) in the hold; the
+    // pictures decode; the page needs nothing outside itself.
+    let map = ergohand::io::gltf::read_gltf(&out.join("contact_map.glb"), Units::Metres).unwrap();
+    assert_eq!(map.meshes.len(), 2);
+    for m in &map.meshes {
+        assert_eq!(m.colors.as_ref().unwrap().len(), m.mesh.n_vertices());
+    }
+    assert_eq!(
+        map.meshes[0].mesh.n_vertices(),
+        glb.meshes[0].mesh.n_vertices()
+    );
+    // The same counts through an independent reader: COLOR_0 as long as POSITION.
+    let peer = gltf::Gltf::open(out.join("contact_map.glb")).unwrap();
+    for mesh in peer.meshes() {
+        for p in mesh.primitives() {
+            let n = p.get(&gltf::Semantic::Positions).unwrap().count();
+            assert_eq!(p.get(&gltf::Semantic::Colors(0)).unwrap().count(), n);
+        }
+    }
+    let grey = |c: &[f32; 4]| c[0] == c[1] && c[1] == c[2];
+    for m in &map.meshes {
+        let touched = m
+            .colors
+            .as_ref()
+            .unwrap()
+            .iter()
+            .filter(|c| !grey(c))
+            .count();
+        assert!(touched > 100, "{}: {touched} vertices coloured", m.name);
+    }
+    for (name, size) in [
+        ("contact_map.png", None),
+        (
+            "angles.png",
+            Some(ergohand::validate::motion_plots::ANGLES_SIZE),
+        ),
+        (
+            "contact_area.png",
+            Some(ergohand::validate::motion_plots::CONTACT_AREA_SIZE),
+        ),
+    ] {
+        let img = image::open(out.join(name)).unwrap();
+        if let Some((w, h)) = size {
+            assert_eq!((img.width(), img.height()), (w, h), "{name}");
+        }
+    }
+    let page = std::fs::read_to_string(out.join("report.html")).unwrap();
+    assert_eq!(
+        ergohand::validate::report_html::check_self_contained(&page),
+        Ok(3)
+    );
+    assert!(page.contains("T_DIST") && page.contains("grasp_bottle"));
+
     // A model folder without skin.obj: motion.json still, no motion.glb, a warning naming it.
     let bare = out.with_file_name("BARE_MODEL");
     std::fs::create_dir_all(&bare).unwrap();
@@ -430,6 +484,14 @@ fn track_the_grasp_trial(subj: &Path, model: &Path, out: &Path) {
     ]);
     assert!(r.status.success(), "{}", stderr(&r));
     assert!(out2.join("motion.json").is_file() && !out2.join("motion.glb").exists());
+    // No map without the skin, but the charts and the page (with the two charts).
+    assert!(!out2.join("contact_map.png").exists() && !out2.join("contact_map.glb").exists());
+    assert!(out2.join("angles.png").is_file() && out2.join("contact_area.png").is_file());
+    let page = std::fs::read_to_string(out2.join("report.html")).unwrap();
+    assert_eq!(
+        ergohand::validate::report_html::check_self_contained(&page),
+        Ok(2)
+    );
     let warned = stderr(&r);
     assert!(
         warned

@@ -1,12 +1,15 @@
 //! `ergohand track SUBJECT_DIR --model OUT --motion NAME [--scene SCENE.toml] --out DIR`: a
 //! motion trial of the subject replayed with its reconstructed link model, written as
-//! `DIR/motion.json` (spec section 5) and animated as `DIR/motion.glb`.
+//! `DIR/motion.json` (spec section 5) and animated as `DIR/motion.glb`, with its contact map
+//! (`contact_map.png`, `contact_map.glb`), charts against time (`angles.png`,
+//! `contact_area.png`) and a page gathering them (`report.html`).
 
 use super::Voice;
 use crate::error::{Error, Result};
 use crate::grasp::contact::PartShape;
 use crate::grasp::hand::SkinnedHand;
 use crate::grasp::scene::Scene;
+use crate::io::atomic::write_bytes_atomic;
 use crate::io::gltf::write_glb;
 use crate::io::output_paths::{check_output_dir, Inputs};
 use crate::io::Units;
@@ -15,10 +18,21 @@ use crate::track::{
     load_link_model, replay_contacts, track_trial, ContactReplay, IkOptions, PartSetup,
     ReplayOptions, Tracked,
 };
+use crate::validate::motion_contact_map::{contact_map_picture, contact_map_scene, ContactMap};
+use crate::validate::motion_plots::{angles_chart, contact_area_chart};
+use crate::validate::motion_report::{motion_report_html, PagePicture};
 use std::path::{Path, PathBuf};
 
 /// The files `track` writes into its output folder.
-pub const OUTPUT_FILES: [&str; 2] = ["motion.json", "motion.glb"];
+pub const OUTPUT_FILES: [&str; 7] = [
+    "motion.json",
+    "motion.glb",
+    "contact_map.png",
+    "contact_map.glb",
+    "angles.png",
+    "contact_area.png",
+    "report.html",
+];
 
 /// What [`track`] did.
 #[derive(Clone, Debug)]
@@ -37,8 +51,11 @@ pub struct TrackSummary {
 /// `reconstruct` folder `model_dir` (its markers attached from the subject's static reference
 /// trial), the part of `scene` (if given) followed by its markers or standing where the scene
 /// places it, and write `out/motion.json` and `out/motion.glb` (the skinned hand and the part
-/// animated over the trial) atomically. Without `skin.obj` in the model folder the GLB is not
-/// written (a warning names the file).
+/// animated over the trial) atomically, with the contact map over the trial as a picture and
+/// a coloured GLB, the charts of the joint angles and the contact area against time and
+/// `out/report.html` (see [`crate::validate::motion_report`]). Without `skin.obj` in the model
+/// folder the GLBs and the contact map are not written (a warning names the file); without a
+/// scene there is no contact map.
 ///
 /// Errors, one line naming the file and the field or marker: no `subject.toml`, no such
 /// motion in `[motions]`, no `link_model.json` in the model folder or one of the other hand, a
@@ -108,10 +125,12 @@ pub(crate) fn track_job(
         Some(SkinnedHand::load(model_dir)?)
     } else {
         warnings.push(format!(
-            "{}: not found, so {} is not written and contacts are not computed; re-run \
-             reconstruct into the --model folder",
+            "{}: not found, so {} and the contact map ({}, {}) are not written and contacts \
+             are not computed; re-run reconstruct into the --model folder",
             skin.display(),
-            glb.display()
+            glb.display(),
+            OUTPUT_FILES[2],
+            OUTPUT_FILES[3]
         ));
         None
     };
@@ -147,6 +166,12 @@ pub(crate) fn track_job(
         }
         None => None,
     };
+    let map = match (&hand, &part_shape, &replay) {
+        (Some(h), Some(p), Some(r)) => Some(crate::validate::motion_contact_map::contact_map(
+            h, &kin, &tracked, &p.mesh, r,
+        )?),
+        _ => None,
+    };
     let records = replay
         .as_ref()
         .map(ContactReplay::records)
@@ -161,6 +186,31 @@ pub(crate) fn track_job(
         None if glb.is_file() => std::fs::remove_file(&glb).map_err(|e| Error::io(&glb, e))?,
         None => {}
     }
+    let map_png = write_map(out, map.as_ref())?;
+    if map.is_none() && hand.is_some() {
+        log::log!(
+            voice.info(),
+            "track {motion}: no --scene, so no part and no contact map"
+        );
+    }
+    let title = format!(
+        "{} \u{b7} {motion}",
+        subject.dir.file_name().map_or_else(
+            || subject.dir.display().to_string(),
+            |n| n.to_string_lossy().into_owned()
+        )
+    );
+    let mut sources: Vec<String> = subject
+        .motions
+        .get(motion)
+        .map(|p| subject.dir.join(p).display().to_string())
+        .into_iter()
+        .collect();
+    sources.push(model_dir.join("link_model.json").display().to_string());
+    if let Some(s) = &scene {
+        sources.push(s.path.display().to_string());
+    }
+    write_charts_and_page(out, &title, &sources, &file, map_png)?;
     for w in &warnings {
         log::log!(voice.warn(), "{w}");
     }
@@ -179,6 +229,76 @@ pub(crate) fn track_job(
         unsolved,
         warnings,
     })
+}
+
+/// Write `contact_map.png` and `contact_map.glb` of `map` into `out` and return the PNG, or
+/// remove stale ones when there is no map.
+fn write_map(out: &Path, map: Option<&ContactMap>) -> Result<Option<Vec<u8>>> {
+    let (png, glb) = (out.join(OUTPUT_FILES[2]), out.join(OUTPUT_FILES[3]));
+    match map {
+        Some(m) => {
+            let bytes = contact_map_picture(m, 420)?.to_png()?;
+            write_bytes_atomic(&png, &bytes)?;
+            write_glb(&glb, &contact_map_scene(m), Units::Metres)?;
+            Ok(Some(bytes))
+        }
+        None => {
+            for p in [png, glb] {
+                if p.is_file() {
+                    std::fs::remove_file(&p).map_err(|e| Error::io(&p, e))?;
+                }
+            }
+            Ok(None)
+        }
+    }
+}
+
+/// Write `angles.png`, `contact_area.png` and `report.html` (with the contact map's picture
+/// `map_png` when there is one) for the trial `file`.
+fn write_charts_and_page(
+    out: &Path,
+    title: &str,
+    sources: &[String],
+    file: &crate::track::MotionFile,
+    map_png: Option<Vec<u8>>,
+) -> Result<()> {
+    let mut pictures = Vec::new();
+    if let Some(png) = map_png {
+        pictures.push(PagePicture {
+            png,
+            file: OUTPUT_FILES[2].into(),
+            caption: "Contact map: each place of the hand (open, at the reference posture, \
+                      seen from the palm) and of the part coloured by the share of the tracked \
+                      frames it touched; grey: never. The same colours on the hand and part \
+                      at the frame of most contact: contact_map.glb."
+                .into(),
+        });
+    }
+    let charts = [
+        (
+            OUTPUT_FILES[4],
+            angles_chart(file)?,
+            "Joint angles against time: the flexion of each joint of each digit and the \
+             wrist's flexion and abduction, degrees from the static trial's posture; gaps: \
+             unsolved frames.",
+        ),
+        (
+            OUTPUT_FILES[5],
+            contact_area_chart(file)?,
+            "Contact area of each digit and of the palm against time, and the RMS of the \
+             markers' residuals per frame; gaps: frames whose contacts are unknown.",
+        ),
+    ];
+    for (name, png, caption) in charts {
+        write_bytes_atomic(&out.join(name), &png)?;
+        pictures.push(PagePicture {
+            png,
+            file: name.into(),
+            caption: caption.into(),
+        });
+    }
+    let html = motion_report_html(title, sources, file, &pictures);
+    write_bytes_atomic(&out.join(OUTPUT_FILES[6]), html.as_bytes())
 }
 
 /// The contacts of the model's skin with the scene's part over `tracked`, with a warning

@@ -2,7 +2,9 @@
 //! `reference.ply`) and measures the errors, then writes the report a person reads
 //! (`report.html`, `report.md`, pictures and charts). It reads the files the pipeline wrote and
 //! may call the stages' public functions on the subject's inputs (the joint trajectories are
-//! recomputed by the link module's registration); the pipeline never calls it.
+//! recomputed by the link module's registration); the pipeline never calls it. It also draws
+//! what a tracked trial's reader looks at (`motion_contact_map`, `motion_plots`,
+//! `motion_report`), from the tracking's results, for the `track` command to write.
 
 pub mod charts;
 pub mod dimension_accuracy;
@@ -13,6 +15,9 @@ pub mod joint_fit;
 pub mod joint_fit_plots;
 pub mod link_accuracy;
 mod model_inputs;
+pub mod motion_contact_map;
+pub mod motion_plots;
+pub mod motion_report;
 pub mod report;
 pub mod report_html;
 pub mod report_md;
