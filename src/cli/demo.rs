@@ -45,7 +45,7 @@ pub fn demo(out: &Path) -> Result<()> {
         Voice::Nested,
     )?;
     let link_s = t2.elapsed().as_secs_f64();
-    let v = validate_job(&subject_dir, &model_dir, &report_dir, Voice::Nested)?;
+    let v = validate_job(&subject_dir, &model_dir, &report_dir, &[], Voice::Nested)?;
     let fist = pose_job(
         &model_dir,
         "fist",

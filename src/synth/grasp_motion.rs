@@ -14,7 +14,8 @@
 //! one of its moving links comes within 0.5 mm of the part's surface, each link taken as a
 //! capsule about its bone of half the digit's measured-by-definition thickness, against the
 //! part's exact signed distance function. That is a model of the finger's skin, not the skin
-//! itself: the truth says so by giving capsule clearances, not contact areas.
+//! itself: the clearances say so; the true skin's own contacts and the fingertips are added
+//! to the truth by [`super::true_contacts`].
 
 use super::capture::{MarkerDef, StaDriver};
 use super::ErrorModel;
@@ -178,6 +179,14 @@ pub struct MotionTruth {
     pub marker_links: BTreeMap<String, String>,
     /// Label swaps written into the trial.
     pub label_swaps: Vec<LabelSwap>,
+    /// Per digit letter (`T`, `I`, `M`, `R`, `L`): the distal link's end per frame, mm, lab
+    /// frame, defined as the model defines it ([`super::true_contacts`]). Optional on input.
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+    pub tips: BTreeMap<String, Vec<[f64; 3]>>,
+    /// The true skin's contacts with the part, the records of `motion.json` (per frame, one per
+    /// link in contact, [`super::true_contacts`]); `None` when not computed.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub contacts: Option<Vec<crate::track::ContactRecord>>,
 }
 
 /// A simulated grasp trial in memory.
@@ -191,8 +200,10 @@ pub struct GraspTrial {
     pub truth: MotionTruth,
     /// The skin markers' definitions (for tests).
     pub markers: Vec<MarkerDef>,
-    /// The forearm's rigid motion per frame (the pose's root; for tests).
+    /// The forearm's rigid motion per frame (the pose's root).
     pub root: Vec<Isometry3<f64>>,
+    /// The part's true pose per frame (part frame -> lab).
+    pub part: Vec<Isometry3<f64>>,
     /// Joint angles per frame relative to the reference posture, degrees, [`Joint::ALL`] order.
     pub angles: Vec<Vec<[f64; 3]>>,
     /// Visibility per marker (trajectory order) per frame before swaps (for tests).
@@ -825,6 +836,8 @@ pub fn simulate_grasp(
         grasp_clearance_mm,
         marker_links,
         label_swaps,
+        tips: BTreeMap::new(),
+        contacts: None,
     };
     let trajectories =
         Trajectories::new(rate, labels, positions, format!("trials/{}.c3d", task.name))?;
@@ -834,6 +847,7 @@ pub fn simulate_grasp(
         truth,
         markers: defs,
         root,
+        part,
         angles,
         visible,
     })
