@@ -164,6 +164,7 @@ pub fn motion_accuracy(
             .get(j.name())
             .ok_or_else(|| Error::input(file, format!("joint {j}: missing from 'joints'")))?;
         let d: Vec<f64> = (0..n)
+            .filter(|f| !unsolved.contains(f))
             .filter_map(|f| {
                 let a = m.centre.get(f).copied().flatten()?;
                 Some((point(&a) - point(&t.centre[f])).norm())
@@ -194,6 +195,7 @@ pub fn motion_accuracy(
             continue;
         };
         let d: Vec<f64> = (0..n)
+            .filter(|i| !unsolved.contains(i))
             .filter_map(|i| {
                 let a = m.get(i).copied().flatten()?;
                 Some((point(&a) - point(t.get(i)?)).norm())
@@ -437,4 +439,245 @@ pub fn subject_motions(
             motion_accuracy(name, file, &tracked, &truth, seen.as_deref())
         })
         .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::synth::grasp_motion::{JointTrack, PartTrack, Phase};
+    use crate::track::motion_file;
+
+    const N: usize = 40;
+
+    /// A motion truth of `N` frames: joints and tips on distinct curves, a hold over frames
+    /// 10-19 with contacts on two links, every marker's link.
+    fn truth() -> MotionTruth {
+        let at = |k: usize, f: usize| {
+            let (k, f) = (k as f64, f as f64);
+            [10.0 * k + f, 3.0 * k - 0.5 * f, (0.1 * f + k).sin() * 20.0]
+        };
+        let joints = Joint::ALL
+            .iter()
+            .enumerate()
+            .map(|(k, j)| {
+                (
+                    j.name().to_string(),
+                    JointTrack {
+                        centre: (0..N).map(|f| at(k, f)).collect(),
+                        angles_deg: vec![[0.0; 3]; N],
+                    },
+                )
+            })
+            .collect();
+        let tips = Finger::ALL
+            .iter()
+            .enumerate()
+            .map(|(k, d)| {
+                (
+                    d.letter().to_string(),
+                    (0..N).map(|f| at(k + 20, f)).collect(),
+                )
+            })
+            .collect();
+        let mut contacts = Vec::new();
+        for f in 8..22 {
+            contacts.push(ContactRecord {
+                frame: f,
+                link: "T_DIST".into(),
+                area_mm2: 100.0 + f as f64,
+                depth_mm: 0.5,
+            });
+            contacts.push(ContactRecord {
+                frame: f,
+                link: "PALM".into(),
+                area_mm2: 300.0,
+                depth_mm: 0.0,
+            });
+        }
+        let mut marker_links = BTreeMap::new();
+        for (m, l) in [
+            ("PALM_1", "PALM"),
+            ("PALM_2", "PALM"),
+            ("PALM_3", "PALM"),
+            ("T_MC_1", "T_META"),
+            ("T_NAIL", "T_DIST"),
+            ("I_PIP", "I_PROX"),
+            ("I_NAIL", "I_DIST"),
+            ("M_PIP", "M_PROX"),
+            ("M_NAIL", "M_DIST"),
+            ("R_PIP", "R_PROX"),
+            ("R_NAIL", "R_DIST"),
+            ("L_PIP", "L_PROX"),
+            ("L_NAIL", "L_DIST"),
+        ] {
+            marker_links.insert(m.to_string(), l.to_string());
+        }
+        MotionTruth {
+            units: "mm".into(),
+            frame: "lab".into(),
+            rate: 100.0,
+            frames: N,
+            joints,
+            part: PartTrack {
+                scene: "scenes/bottle.toml".into(),
+                position: vec![[0.0; 3]; N],
+                rotation: vec![[[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]]; N],
+                markers: BTreeMap::new(),
+            },
+            phases: vec![Phase {
+                name: "hold".into(),
+                first: 10,
+                last: 19,
+            }],
+            grasp_deg: BTreeMap::new(),
+            grasp_clearance_mm: BTreeMap::new(),
+            marker_links,
+            label_swaps: Vec::new(),
+            tips,
+            contacts: Some(contacts),
+        }
+    }
+
+    /// The truth written as a tracked `motion.json`, every point moved by `shift`, the
+    /// contact areas scaled by `scale`, residuals `residual` mm.
+    fn tracked_as(t: &MotionTruth, shift: [f64; 3], scale: f64, residual: f64) -> MotionFile {
+        let mv = |p: &[f64; 3]| Some([p[0] + shift[0], p[1] + shift[1], p[2] + shift[2]]);
+        MotionFile {
+            units: "mm".into(),
+            rate: t.rate,
+            frames: t.frames,
+            frame: "lab".into(),
+            joints: t
+                .joints
+                .iter()
+                .map(|(k, j)| {
+                    (
+                        k.clone(),
+                        motion_file::JointTrack {
+                            centre: j.centre.iter().map(mv).collect(),
+                            angles_deg: vec![Some(vec![0.0]); t.frames],
+                            held_frames: Vec::new(),
+                        },
+                    )
+                })
+                .collect(),
+            tips: t
+                .tips
+                .iter()
+                .map(|(k, v)| (k.clone(), v.iter().map(mv).collect()))
+                .collect(),
+            marker_residual_mm: BTreeMap::from([(
+                "PALM_1".to_string(),
+                vec![Some(residual); t.frames],
+            )]),
+            contacts: t
+                .contacts
+                .clone()
+                .unwrap()
+                .into_iter()
+                .map(|mut r| {
+                    r.area_mm2 *= scale;
+                    r
+                })
+                .collect(),
+            unsolved_frames: Vec::new(),
+            rejected_frames: BTreeMap::new(),
+            part: None,
+            warnings: Vec::new(),
+        }
+    }
+
+    fn score(m: &MotionFile, t: &MotionTruth) -> MotionAccuracy {
+        motion_accuracy("grasp_bottle", Path::new("motion.json"), m, t, None).unwrap()
+    }
+
+    /// The truth scored against itself: every distance 0, every area ratio 1.
+    #[test]
+    fn a_motion_equal_to_the_truth_scores_zero_and_ratio_one() {
+        let t = truth();
+        let a = score(&tracked_as(&t, [0.0; 3], 1.0, 0.0), &t);
+        assert_eq!(a.centre.unwrap().rms_mm, 0.0);
+        assert_eq!(a.centre.unwrap().samples, 16 * N);
+        assert_eq!(a.tip.unwrap().rms_mm, 0.0);
+        assert_eq!(a.tips.len(), 5);
+        assert_eq!(a.joints.len(), 16);
+        let h = a.hold_contacts.unwrap();
+        assert_eq!((h.first, h.last, h.frames), (10, 19, 10));
+        assert_eq!(h.links.len(), 3);
+        for l in &h.links {
+            assert!((l.ratio.unwrap() - 1.0).abs() < 1e-12, "{}", l.link);
+        }
+        // The hold's mean: frames 10-19 only (the records run over 8-21).
+        let thumb = h.links.iter().find(|l| l.link == "T_DIST").unwrap();
+        assert!((thumb.true_mm2 - 114.5).abs() < 1e-9);
+        assert_eq!(a.unsolved_frames, 0);
+    }
+
+    /// Every point shifted by a known vector: the RMS of every joint, group and tip is its
+    /// length; areas scaled by 1.5 give ratio 1.5; the residual RMS is the residual.
+    #[test]
+    fn a_shifted_motion_scores_the_shift() {
+        let t = truth();
+        let shift = [1.0, -2.0, 2.0];
+        let a = score(&tracked_as(&t, shift, 1.5, 0.7), &t);
+        for r in a
+            .joints
+            .iter()
+            .map(|j| j.error)
+            .chain(a.dof_groups.values().copied())
+            .chain(a.tips.values().copied())
+            .chain([a.centre.unwrap(), a.tip.unwrap()])
+        {
+            assert!((r.rms_mm - 3.0).abs() < 1e-9 && (r.max_mm - 3.0).abs() < 1e-9);
+        }
+        let dofs: std::collections::BTreeSet<String> =
+            Joint::ALL.iter().map(|j| j.dof().to_string()).collect();
+        assert_eq!(
+            a.dof_groups
+                .keys()
+                .cloned()
+                .collect::<std::collections::BTreeSet<_>>(),
+            dofs
+        );
+        assert!((a.marker_residual.unwrap().rms_mm - 0.7).abs() < 1e-12);
+        for l in &a.hold_contacts.unwrap().links {
+            assert!((l.ratio.unwrap() - 1.5).abs() < 1e-12, "{}", l.link);
+        }
+    }
+
+    /// Unsolved frames are left out of every RMS; a frame is lost only where three palm
+    /// markers and two per digit were seen; another frame count is an error naming the file.
+    #[test]
+    fn unsolved_frames_are_lost_only_where_the_goal_markers_were_seen() {
+        let t = truth();
+        let mut m = tracked_as(&t, [0.0; 3], 1.0, 0.0);
+        for f in [3, 12] {
+            for j in m.joints.values_mut() {
+                j.centre[f] = Some([1e6; 3]);
+            }
+        }
+        m.unsolved_frames = vec![3, 12];
+        let all: Vec<String> = t.marker_links.keys().cloned().collect();
+        let mut seen = vec![all.clone(); N];
+        seen[3].retain(|m| m != "PALM_2");
+        // Frame 12 sees everything.
+        let a = motion_accuracy("g", Path::new("m.json"), &m, &t, Some(&seen)).unwrap();
+        assert_eq!(a.centre.unwrap().rms_mm, 0.0);
+        assert_eq!(a.centre.unwrap().samples, 16 * (N - 2));
+        assert_eq!(a.lost_frames, Some(vec![12]));
+        assert_eq!(a.unsolved_frames, 2);
+        assert_eq!(a.hold_contacts.as_ref().unwrap().frames, 9);
+        // A digit with one marker seen does not meet the goal either.
+        let mut one = all.clone();
+        one.retain(|m| m != "R_NAIL");
+        assert!(!goal_markers_seen(&one, &t) && goal_markers_seen(&all, &t));
+        m.frames = N + 1;
+        let e = motion_accuracy("g", Path::new("m.json"), &m, &t, None)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("m.json") && e.contains("frames") && !e.contains('\n'),
+            "{e}"
+        );
+    }
 }
