@@ -373,8 +373,8 @@ pub fn replay_frames(
     let mut skin_count = vec![0u32; skin.n_vertices()];
     let mut part_count = vec![0u32; part.mesh.n_vertices()];
     let mut frames = Vec::with_capacity(n);
-    for f in 0..n {
-        let Some(frame) = &frames_in[f] else {
+    for (f, frame) in frames_in.iter().enumerate() {
+        let Some(frame) = frame else {
             frames.push(None);
             continue;
         };
