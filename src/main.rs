@@ -140,6 +140,11 @@ enum Command {
         /// SUBJECT_DIR/subjects/.
         #[arg(long)]
         suite: bool,
+        /// A track output folder (holding motion.json) to score against the subject's
+        /// truth_motion/NAME.json (NAME: the folder's name, or the subject's only motion);
+        /// repeatable. MODEL/motions/NAME/motion.json is scored without it.
+        #[arg(long = "motion", value_name = "DIR")]
+        motions: Vec<PathBuf>,
     },
     /// Pose a reconstructed hand.
     Pose {
@@ -285,10 +290,11 @@ fn main() -> ExitCode {
             model,
             report,
             suite: false,
+            motions,
         } => {
             let model = model.unwrap_or_else(|| subject_dir.join("out"));
             let report = report.unwrap_or_else(|| model.join("report"));
-            cli::validate(&subject_dir, &model, &report).map(|_| ())
+            cli::validate_with(&subject_dir, &model, &report, &motions).map(|_| ())
         }
         Command::Pose {
             model,

@@ -467,6 +467,43 @@ fn track_the_grasp_trial(subj: &Path, model: &Path, out: &Path) {
     );
     assert!(page.contains("T_DIST") && page.contains("grasp_bottle"));
 
+    // validate finds the tracked motion (given by --motion) and scores it against the
+    // truth: the centres as measured above, the tips of every digit, the hold's contacts per
+    // link against the true skin's, in metrics.json and both reports.
+    let rep = out.with_file_name("TRACK_REPORT");
+    let r = ergohand(&[
+        "validate",
+        s,
+        "--model",
+        m,
+        "--report",
+        rep.to_str().unwrap(),
+        "--motion",
+        o,
+        "-q",
+    ]);
+    assert!(r.status.success(), "{}", stderr(&r));
+    let metrics = read(&rep.join("metrics.json"));
+    let motions = metrics["motions"].as_array().unwrap();
+    assert_eq!(motions.len(), 1);
+    let mo = &motions[0];
+    assert_eq!(mo["motion"], "grasp_bottle");
+    assert!((mo["centre"]["rms_mm"].as_f64().unwrap() - rms).abs() < 1e-9);
+    assert_eq!(mo["centre"]["samples"].as_u64(), Some(16 * frames as u64));
+    assert_eq!(mo["tips"].as_object().unwrap().len(), 5);
+    assert_eq!(mo["lost_frames"].as_array().map(Vec::len), Some(0));
+    let hold = &mo["hold_contacts"];
+    let (h0, h1) = phase("hold");
+    assert_eq!(hold["frames"].as_u64(), Some((h1 - h0 + 1) as u64));
+    let total = hold["links"].as_array().unwrap().last().unwrap();
+    assert_eq!(total["link"], "TOTAL");
+    assert!((total["tracked_mm2"].as_f64().unwrap() - held).abs() <= 0.01 * held);
+    assert!(total["true_mm2"].as_f64().unwrap() > 0.0);
+    for f in ["report.md", "report.html"] {
+        let text = std::fs::read_to_string(rep.join(f)).unwrap();
+        assert!(text.contains("Tracked motions against the truth"), "{f}");
+    }
+
     // A model folder without skin.obj: motion.json still, no motion.glb, a warning naming it.
     let bare = out.with_file_name("BARE_MODEL");
     std::fs::create_dir_all(&bare).unwrap();

@@ -65,7 +65,7 @@ pub fn demo(out: &Path) -> Result<()> {
         Voice::Nested,
     )?;
     let track_s = t3.elapsed().as_secs_f64();
-    let v = validate_job(&subject_dir, &model_dir, &report_dir, Voice::Nested)?;
+    let v = validate_job(&subject_dir, &model_dir, &report_dir, &[], Voice::Nested)?;
     let fist = pose_job(
         &model_dir,
         "fist",

@@ -31,7 +31,7 @@ pub use shape_prior::shape_prior;
 pub use synth::{synth, synth_options};
 pub use template::{template, TemplateOutputs};
 pub use track::{track, TrackSummary};
-pub use validate::{validate, validate_suite, Validation};
+pub use validate::{validate, validate_suite, validate_with, Validation};
 
 use crate::error::{Error, Result};
 use std::path::Path;

@@ -90,7 +90,7 @@ pub(crate) fn track_job(
     inputs.files.push(model_dir.join("link_model.json"));
     check_output_dir(out, &OUTPUT_FILES, "--out", &inputs)?;
 
-    let kin = load_link_model(model_dir)?;
+    let mut kin = load_link_model(model_dir)?;
     if kin.skeleton.side != subject.hand {
         return Err(Error::input(
             model_dir.join("link_model.json"),
@@ -134,6 +134,11 @@ pub(crate) fn track_job(
         ));
         None
     };
+    // The fingertips the hand carries: derived from the skin (the link model has none), as
+    // the contacts and the animation see them.
+    if let Some(h) = &hand {
+        kin.skeleton.tips = h.hand.skeleton.tips;
+    }
     let replay_opts = ReplayOptions::default();
     let part_shape = match &scene {
         Some(s) => {

@@ -20,21 +20,34 @@ pub type Validation = crate::validate::SubjectValidation;
 /// references are optional (a real subject has no `truth.json`): what needs a missing one is
 /// skipped, and the report says so.
 pub fn validate(subject_dir: &Path, model: &Path, report: &Path) -> Result<Validation> {
-    validate_job(subject_dir, model, report, Voice::Command)
+    validate_job(subject_dir, model, report, &[], Voice::Command)
 }
 
-/// [`validate`], speaking with `voice`: the tables on stdout only for the command's own job.
+/// [`validate`], with the tracked motions of the `track` output folders `motions` scored
+/// against the subject's motion truths (besides those found in `MODEL/motions/NAME/`).
+pub fn validate_with(
+    subject_dir: &Path,
+    model: &Path,
+    report: &Path,
+    motions: &[std::path::PathBuf],
+) -> Result<Validation> {
+    validate_job(subject_dir, model, report, motions, Voice::Command)
+}
+
+/// [`validate_with`], speaking with `voice`: the tables on stdout only for the command's own
+/// job.
 pub(crate) fn validate_job(
     subject_dir: &Path,
     model: &Path,
     report: &Path,
+    motions: &[std::path::PathBuf],
     voice: Voice,
 ) -> Result<Validation> {
     let spinner = match voice {
         Voice::Command => super::progress(1, "validate"),
         Voice::Nested => indicatif::ProgressBar::hidden(),
     };
-    let (v, _) = crate::validate::validate_subject(subject_dir, model, report)?;
+    let (v, _) = crate::validate::validate_subject_with(subject_dir, model, report, motions)?;
     spinner.finish_and_clear();
     let dims = &v.dimensions;
     if voice == Voice::Command && super::show_summaries() {
@@ -102,6 +115,35 @@ pub(crate) fn validate_job(
         );
         if let Some(r) = crate::validate::report_tables::references_sentence(&v) {
             println!("{r}");
+        }
+        for m in &v.motions {
+            let mm = |r: &Option<crate::validate::motion_accuracy::Rms>| {
+                r.map(|r| format!("{:.2} mm", r.rms_mm))
+                    .unwrap_or_else(|| "-".into())
+            };
+            println!(
+                "motion {}: centre RMS {}, fingertip RMS {}, marker residual RMS {}, {} of {} \
+                 frames unsolved ({} lost)",
+                m.motion,
+                mm(&m.centre),
+                mm(&m.tip),
+                mm(&m.marker_residual),
+                m.unsolved_frames,
+                m.frames,
+                m.lost_frames
+                    .as_ref()
+                    .map_or("?".to_string(), |l| l.len().to_string())
+            );
+            if let Some(h) = &m.hold_contacts {
+                println!("link      hold area tracked   true (mm²)  ratio");
+                for l in &h.links {
+                    let r = l.ratio.map_or("-".to_string(), |r| format!("{r:.2}"));
+                    println!(
+                        "{:8} {:>12.1} {:>12.1} {:>6}",
+                        l.link, l.tracked_mm2, l.true_mm2, r
+                    );
+                }
+            }
         }
         let secs: f64 = v.validate_timings_s.iter().map(|x| x.1).sum();
         log::info!(

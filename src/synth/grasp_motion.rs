@@ -14,7 +14,8 @@
 //! one of its moving links comes within 0.5 mm of the part's surface, each link taken as a
 //! capsule about its bone of half the digit's measured-by-definition thickness, against the
 //! part's exact signed distance function. That is a model of the finger's skin, not the skin
-//! itself: the truth says so by giving capsule clearances, not contact areas.
+//! itself: the clearances say so; the true skin's own contacts and the fingertips are added
+//! to the truth by [`super::true_contacts`].
 
 use super::capture::{MarkerDef, StaDriver};
 use super::ErrorModel;
@@ -178,6 +179,14 @@ pub struct MotionTruth {
     pub marker_links: BTreeMap<String, String>,
     /// Label swaps written into the trial.
     pub label_swaps: Vec<LabelSwap>,
+    /// Per digit letter (`T`, `I`, `M`, `R`, `L`): the distal link's end per frame, mm, lab
+    /// frame, defined as the model defines it ([`super::true_contacts`]). Optional on input.
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+    pub tips: BTreeMap<String, Vec<[f64; 3]>>,
+    /// The true skin's contacts with the part, the records of `motion.json` (per frame, one per
+    /// link in contact, [`super::true_contacts`]); `None` when not computed.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub contacts: Option<Vec<crate::track::ContactRecord>>,
 }
 
 /// A simulated grasp trial in memory.
@@ -191,8 +200,10 @@ pub struct GraspTrial {
     pub truth: MotionTruth,
     /// The skin markers' definitions (for tests).
     pub markers: Vec<MarkerDef>,
-    /// The forearm's rigid motion per frame (the pose's root; for tests).
+    /// The forearm's rigid motion per frame (the pose's root).
     pub root: Vec<Isometry3<f64>>,
+    /// The part's true pose per frame (part frame -> lab).
+    pub part: Vec<Isometry3<f64>>,
     /// Joint angles per frame relative to the reference posture, degrees, [`Joint::ALL`] order.
     pub angles: Vec<Vec<[f64; 3]>>,
     /// Visibility per marker (trajectory order) per frame before swaps (for tests).
@@ -825,6 +836,8 @@ pub fn simulate_grasp(
         grasp_clearance_mm,
         marker_links,
         label_swaps,
+        tips: BTreeMap::new(),
+        contacts: None,
     };
     let trajectories =
         Trajectories::new(rate, labels, positions, format!("trials/{}.c3d", task.name))?;
@@ -834,6 +847,7 @@ pub fn simulate_grasp(
         truth,
         markers: defs,
         root,
+        part,
         angles,
         visible,
     })
@@ -1208,5 +1222,113 @@ mod tests {
             e.contains("motion trial length") && !e.contains('\n'),
             "{e}"
         );
+    }
+
+    /// The truth's fingertips are the true skeleton's forward kinematics: per digit, the point
+    /// of the rest DIP (IP) axis level with the farthest skin vertex the template's weights give
+    /// the distal link, moved by that link's true transform (from the trial's forearm motion
+    /// and angles); it keeps its rest distance from the truth's DIP centre in every frame.
+    #[test]
+    fn truth_tips_are_the_true_skeletons_forward_kinematics() {
+        let s = clean();
+        let m = &s.motions["grasp_bottle"];
+        let t = &m.truth;
+        let template = crate::template::load_template(s.subject.hand).unwrap();
+        let dom = crate::template::dominant_links(&template.weights);
+        let sk = &s.true_skeleton;
+        for f in Finger::ALL {
+            let dip = f.joints()[2];
+            let l = f.links()[2];
+            let (c, z) = (sk.centre(dip), sk.joint(dip).z());
+            let reach = s
+                .true_skin
+                .vertices
+                .iter()
+                .zip(&dom)
+                .filter(|(_, d)| **d == l.index())
+                .map(|(v, _)| (v - c).dot(&z))
+                .fold(f64::MIN, f64::max);
+            assert!(reach > 10.0, "{f:?}: {reach}");
+            let rest_tip = c + z * reach;
+            assert_eq!(t.tips[f.letter()].len(), t.frames);
+            for fr in (0..t.frames).step_by(13) {
+                let mut pose = Pose::zero();
+                for (j, a) in Joint::ALL.iter().zip(&m.angles[fr]) {
+                    pose = pose.with_deg(*j, *a);
+                }
+                pose.root = m.root[fr];
+                let want = link_transforms(sk, &pose)[l.index()] * rest_tip;
+                let got = p(&t.tips[f.letter()][fr]);
+                assert!((got - want).norm() < 1e-9, "{f:?} frame {fr}");
+                let dc = p(&t.joints[dip.name()].centre[fr]);
+                assert!((((got - dc).norm()) - (rest_tip - c).norm()).abs() < 1e-9);
+            }
+        }
+    }
+
+    /// The truth's contacts are those of the true skin posed afresh in each frame (the
+    /// template's weights by the skeleton's own linear blend) and probed vertex
+    /// by vertex against the bottle's mesh at its true pose: every vertex within 1 mm of the
+    /// part or inside it counts its rest area for its dominant link. The mesh is the bottle:
+    /// its signed distance agrees with the exact one of the shape there. Nothing touches
+    /// while the hand is 60 mm back in the reach, and the hold has contacts.
+    #[test]
+    fn truth_contacts_are_the_posed_true_skin_probed_against_the_part() {
+        use crate::grasp::contact::{vertex_areas, PartShape, Probe};
+        let s = clean();
+        let m = &s.motions["grasp_bottle"];
+        let t = &m.truth;
+        let records = t.contacts.as_ref().expect("contacts computed");
+        let template = crate::template::load_template(s.subject.hand).unwrap();
+        let dom = crate::template::dominant_links(&template.weights);
+        let areas = vertex_areas(&s.true_skin);
+        let (mesh, _) = crate::grasp::parts::clean_part(&Part::Bottle.mesh().unwrap());
+        let part = PartShape::with_band(mesh, 1.0).unwrap().0;
+        let hold = t.phases.iter().find(|p| p.name == "hold").unwrap();
+        let frames = [0, 5, hold.first, (hold.first + hold.last) / 2, hold.last];
+        for &fr in &frames {
+            let mut pose = Pose::zero();
+            for (j, a) in Joint::ALL.iter().zip(&m.angles[fr]) {
+                pose = pose.with_deg(*j, *a);
+            }
+            pose.root = m.root[fr];
+            let tf = link_transforms(&s.true_skeleton, &pose);
+            let posed = crate::skeleton::forward_kinematics::linear_blend(
+                &s.true_skin.vertices,
+                &template.weights,
+                &tf,
+            );
+            let to_part = m.part[fr].inverse();
+            let mut area = [0.0; 17];
+            let mut depth = [0.0f64; 17];
+            for (i, v) in posed.iter().enumerate() {
+                let q = to_part * v;
+                let d = match part.probe(&q, f64::INFINITY) {
+                    Probe::Hit(d, _, _) => d,
+                    _ => continue,
+                };
+                if d <= 1.0 {
+                    area[dom[i]] += areas[i];
+                    depth[dom[i]] = depth[dom[i]].max(-d);
+                    assert!((Part::Bottle.sdf(&q) - d).abs() < 0.3, "vertex {i}");
+                }
+            }
+            for l in Link::ALL {
+                let got = records.iter().find(|r| r.frame == fr && r.link == l.name());
+                let (a, d) = got.map_or((0.0, 0.0), |r| (r.area_mm2, r.depth_mm));
+                assert!(
+                    (a - area[l.index()]).abs() < 1e-6,
+                    "frame {fr} {l}: {a} against {}",
+                    area[l.index()]
+                );
+                assert!((d - depth[l.index()]).abs() < 1e-6, "frame {fr} {l}");
+            }
+            let total: f64 = area.iter().sum();
+            if fr < 10 {
+                assert_eq!(total, 0.0, "frame {fr}: the hand is still far");
+            } else {
+                assert!(total > 100.0, "frame {fr}: {total} mm² in the hold");
+            }
+        }
     }
 }

@@ -16,6 +16,7 @@ pub mod procedural;
 pub mod stamp;
 pub mod suite;
 pub mod surface_field;
+pub mod true_contacts;
 pub mod true_hand;
 pub mod voxel_scan;
 
@@ -665,8 +666,21 @@ pub fn simulate_with(opts: &SynthOptions, err: &ErrorModel) -> Result<SyntheticS
         }
         defs.extend(arm_defs.iter().cloned());
         let gerr = grasp_motion::GraspErrors::from_model(&err);
+        // The true skin's weights for its contacts: the template's by homology, or bone heat
+        // on the procedural body's own skin. No draws: the trials do not change.
+        let weights = if hand.homologous_to_template {
+            template.weights.clone()
+        } else {
+            crate::pose::bone_heat_weights(
+                &true_skin,
+                &true_skeleton,
+                &crate::pose::HeatOptions::default(),
+            )?
+        };
+        let skinned =
+            true_contacts::true_skinned_hand(opts.hand, &true_skin, &true_skeleton, weights)?;
         for task in &grasp_motion::GRASP_TASKS {
-            let trial = grasp_motion::simulate_grasp(
+            let mut trial = grasp_motion::simulate_grasp(
                 task,
                 grasp_motion::GraspInputs {
                     skeleton: &true_skeleton,
@@ -680,6 +694,7 @@ pub fn simulate_with(opts: &SynthOptions, err: &ErrorModel) -> Result<SyntheticS
                 &gerr,
                 &session(&format!("motion-{}", task.name)),
             )?;
+            true_contacts::add_skin_truth(&skinned, task, &mut trial)?;
             motions.insert(task.name.to_string(), trial);
         }
     }

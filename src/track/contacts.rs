@@ -308,14 +308,8 @@ fn classify(part: &PartShape, p: &Point, known: &mut Option<Known>, tol: f64) ->
 
 /// Contacts of `hand` (the individual hand of the model `kin` was read from) with `part` (in
 /// its own frame) over the `tracked` trial, whose `part` holds the part's pose per frame (part
-/// frame -> lab).
-///
-/// Frames run in order and each vertex remembers its last exact query: a vertex is queried
-/// again only when the distance it has moved since could have carried it across the
-/// tolerance, and the deepest penetration of a link is found by branch and bound over its
-/// vertices' depth intervals, querying only those that could still be deepest. The contact
-/// areas and depths are exactly those of querying every vertex in every frame; a contact
-/// map's projection is the last exact one moved with the vertex. Vertices run in parallel.
+/// frame -> lab): [`replay_frames`] with the tracked link transforms ([`Kinematics::evaluate`])
+/// of every frame where both the hand and the part are known.
 pub fn replay_contacts(
     hand: &SkinnedHand,
     kin: &Kinematics,
@@ -323,7 +317,46 @@ pub fn replay_contacts(
     part: &PartShape,
     opts: &ReplayOptions,
 ) -> ContactReplay {
-    let n = tracked.frames.len();
+    let frames: Vec<Option<PosedFrame>> = (0..tracked.frames.len())
+        .map(|f| {
+            let pose = tracked.part.as_ref().and_then(|(poses, _)| poses[f])?;
+            let state = tracked.frames[f].state.as_ref()?;
+            Some(PosedFrame {
+                links: kin.evaluate(state).links,
+                part: pose,
+            })
+        })
+        .collect();
+    replay_frames(hand, &frames, part, opts)
+}
+
+/// One frame to replay: every link's transform from the hand's rest posture to the lab
+/// ([`Link::index`] order), and the part's pose (part frame -> lab).
+///
+/// [`Link::index`]: crate::anatomy::Link::index
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PosedFrame {
+    pub links: [Isometry3<f64>; 17],
+    pub part: Isometry3<f64>,
+}
+
+/// Contacts of `hand` (posed by linear blend skinning with each frame's link transforms) with
+/// `part` (in its own frame) over `frames` (`None`: the hand or the part unknown there, no
+/// contacts).
+///
+/// Frames run in order and each vertex remembers its last exact query: a vertex is queried
+/// again only when the distance it has moved since could have carried it across the
+/// tolerance, and the deepest penetration of a link is found by branch and bound over its
+/// vertices' depth intervals, querying only those that could still be deepest. The contact
+/// areas and depths are exactly those of querying every vertex in every frame; a contact
+/// map's projection is the last exact one moved with the vertex. Vertices run in parallel.
+pub fn replay_frames(
+    hand: &SkinnedHand,
+    frames_in: &[Option<PosedFrame>],
+    part: &PartShape,
+    opts: &ReplayOptions,
+) -> ContactReplay {
+    let n = frames_in.len();
     let skin = hand.rest_mesh();
     let areas = vertex_areas(skin);
     let links = hand.vertex_link();
@@ -340,15 +373,13 @@ pub fn replay_contacts(
     let mut skin_count = vec![0u32; skin.n_vertices()];
     let mut part_count = vec![0u32; part.mesh.n_vertices()];
     let mut frames = Vec::with_capacity(n);
-    for f in 0..n {
-        let pose = tracked.part.as_ref().and_then(|(poses, _)| poses[f]);
-        let (Some(state), Some(pose)) = (tracked.frames[f].state.as_ref(), pose) else {
+    for (f, frame) in frames_in.iter().enumerate() {
+        let Some(frame) = frame else {
             frames.push(None);
             continue;
         };
-        let to_part = pose.inverse();
-        let t = kin.evaluate(state);
-        let transforms: Vec<Isometry3<f64>> = t.links.iter().map(|l| to_part * l).collect();
+        let to_part = frame.part.inverse();
+        let transforms: Vec<Isometry3<f64>> = frame.links.iter().map(|l| to_part * l).collect();
         // Only the links that may come within the tolerance of the part's box are posed and
         // probed; the others' vertices are apart, and keep what they knew.
         near.clear();

@@ -27,13 +27,15 @@ pub mod motion_file;
 pub mod part;
 
 pub use attachment::{rides_on, AttachedMarker, Attachment};
-pub use contacts::{replay_contacts, ContactReplay, FrameContacts, ReplayOptions};
+pub use contacts::{
+    replay_contacts, replay_frames, ContactReplay, FrameContacts, PosedFrame, ReplayOptions,
+};
 pub use inverse_kinematics::{observations, FrameSolution, IkOptions, Solver};
 pub use kinematics::{load_link_model, HandState, Kinematics};
 pub use motion_file::{ContactRecord, JointTrack, MotionFile, PartPose, PartTrack};
 pub use part::{fill_pose_gaps, part_poses, PartPoses};
 
-use crate::anatomy::{Joint, Link};
+use crate::anatomy::{Finger, Joint, Link};
 use crate::error::{Error, Result};
 use crate::geometry::{Point, TriMesh};
 use crate::io::gltf::Scene;
@@ -280,7 +282,8 @@ impl Tracked {
         )
     }
 
-    /// The `motion.json` document (contacts as given).
+    /// The `motion.json` document (contacts as given; fingertips those of `kin`'s skeleton
+    /// carried by the distal links).
     pub fn motion_file(&self, kin: &Kinematics, contacts: Vec<ContactRecord>) -> MotionFile {
         let n = self.frames.len();
         let mut joints = BTreeMap::new();
@@ -319,6 +322,26 @@ impl Tracked {
             };
             joints.insert(j.name().to_string(), track);
         }
+        let posed_tips: Vec<Option<[Point; 5]>> = self
+            .frames
+            .iter()
+            .map(|f| {
+                f.state.as_ref().map(|s| {
+                    let t = kin.evaluate(s);
+                    crate::skeleton::forward_kinematics::posed_tips(&kin.skeleton, &t.links)
+                })
+            })
+            .collect();
+        let tips = Finger::ALL
+            .iter()
+            .map(|&d| {
+                let track = posed_tips
+                    .iter()
+                    .map(|t| t.map(|t| t[d as usize].coords.into()))
+                    .collect();
+                (d.letter().to_string(), track)
+            })
+            .collect();
         let mut marker_residual_mm = BTreeMap::new();
         let mut rejected_frames = BTreeMap::new();
         for (i, m) in self.attachment.markers.iter().enumerate() {
@@ -356,6 +379,7 @@ impl Tracked {
             frames: n,
             frame: "lab".into(),
             joints,
+            tips,
             marker_residual_mm,
             contacts,
             unsolved_frames: (0..n).filter(|&f| self.frames[f].state.is_none()).collect(),

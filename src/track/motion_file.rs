@@ -1,7 +1,7 @@
 //! `motion.json` (spec section 5): joint centres in the lab frame per frame (null where the
 //! frame is unsolved), joint angles in degrees, each marker's residual, and contacts; with
-//! extensions a reader may ignore: the unsolved frames, the frames each joint was held or
-//! coupled and each marker rejected, the part's pose and the warnings.
+//! extensions a reader may ignore: the fingertips, the unsolved frames, the frames each joint
+//! was held or coupled and each marker rejected, the part's pose and the warnings.
 
 use crate::anatomy::Joint;
 use crate::error::Result;
@@ -88,6 +88,10 @@ pub struct MotionFile {
     pub frame: String,
     /// Per joint name.
     pub joints: BTreeMap<String, JointTrack>,
+    /// Per digit letter (`T`, `I`, `M`, `R`, `L`): the distal link's end (the model's
+    /// fingertip), mm, lab frame, per frame (null: unsolved). Optional on input.
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+    pub tips: BTreeMap<String, Vec<Option<[f64; 3]>>>,
     /// Per marker, per frame: fitted minus seen distance, mm (null: not seen or unsolved).
     pub marker_residual_mm: BTreeMap<String, Vec<Option<f64>>>,
     /// Contacts of the posed skin with the part.

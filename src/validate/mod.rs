@@ -15,6 +15,7 @@ pub mod joint_fit;
 pub mod joint_fit_plots;
 pub mod link_accuracy;
 mod model_inputs;
+pub mod motion_accuracy;
 pub mod motion_contact_map;
 pub mod motion_plots;
 pub mod motion_report;
@@ -31,6 +32,6 @@ pub mod thresholds;
 
 pub use dimension_accuracy::{dimension_accuracy, DimensionAccuracy};
 pub use link_accuracy::{link_accuracy, JointError, LinkAccuracy};
-pub use report::validate_subject;
+pub use report::{validate_subject, validate_subject_with};
 pub use subject_validation::SubjectValidation;
 pub use surface_error::{surface_error, SurfaceError};

@@ -364,6 +364,7 @@ mod tests {
             residual_mm: Vec::new(),
             rejected: Vec::new(),
             held: Vec::new(),
+            coupled: Vec::new(),
             iterations: 0,
         }
     }

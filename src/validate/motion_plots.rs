@@ -354,6 +354,7 @@ pub(crate) mod tests {
                     centre: vec![None; n],
                     angles_deg: angles,
                     held_frames: if j == Joint::LDip { vec![5, 6] } else { vec![] },
+                    coupled_frames: Vec::new(),
                 },
             );
         }
@@ -393,6 +394,7 @@ pub(crate) mod tests {
             frames: n,
             frame: "lab".into(),
             joints,
+            tips: BTreeMap::new(),
             marker_residual_mm: residual,
             contacts,
             unsolved_frames: unsolved,

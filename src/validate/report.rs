@@ -38,6 +38,18 @@ pub fn validate_subject(
     model: &Path,
     report: &Path,
 ) -> Result<(SubjectValidation, ReportFigures)> {
+    validate_subject_with(subject_dir, model, report, &[])
+}
+
+/// [`validate_subject`], with the tracked motions of the folders `motions` scored against the
+/// subject's motion truths as well as those found in `model/motions/NAME/`
+/// ([`super::motion_accuracy::subject_motions`]).
+pub fn validate_subject_with(
+    subject_dir: &Path,
+    model: &Path,
+    report: &Path,
+    motions: &[PathBuf],
+) -> Result<(SubjectValidation, ReportFigures)> {
     let mut timings: Vec<(String, f64)> = Vec::new();
     let mut t = Instant::now();
     let mut lap = |name: &str, t: &mut Instant| {
@@ -75,8 +87,13 @@ pub fn validate_subject(
     };
     let (figures, thumbnail_png, top) = charts(&measured, map_pictures, report)?;
     lap("charts (PNG and SVG)", &mut t);
+    let motions = super::motion_accuracy::subject_motions(subject_dir, model, motions)?;
+    if !motions.is_empty() {
+        lap("tracked motions", &mut t);
+    }
 
     let mut v = summary(inputs, measured, &figures, thumbnail_png, top);
+    v.motions = motions;
     // The report's own time goes into the report: write it last, after measuring.
     let html = super::report_html::subject_html(&v, &figures);
     let md = super::report_md::subject_markdown(&v, &figures);
@@ -233,6 +250,7 @@ fn summary(
         reconstruct_timings_s: inputs.reconstruct_timings_s,
         validate_timings_s: Vec::new(),
         warnings: inputs.warnings,
+        motions: Vec::new(),
         files,
         thumbnail_png,
     }

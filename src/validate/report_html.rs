@@ -405,6 +405,23 @@ pub fn subject_html(v: &SubjectValidation, figs: &ReportFigures) -> String {
         b.push_str(&format!("<li><a href=\"{0}\">{0}</a></li>", esc(f)));
     }
     b.push_str("</ul></section>\n");
+
+    // 8. Tracked motions, when any was found.
+    if !v.motions.is_empty() {
+        b.push_str("<section id=\"motions\"><h2>8 · Tracked motions against the truth</h2>");
+        for m in &v.motions {
+            b.push_str(&format!(
+                "<h3>{}</h3><p class=\"lead\"><code>{}</code> against <code>truth_motion/{}.json</code>: joint centres and fingertips per solved frame, marker residuals, lost frames, and the hold's contact areas of the tracked skin against the true skin.</p>",
+                esc(&m.motion),
+                esc(&m.file.display().to_string()),
+                esc(&m.motion)
+            ));
+            for t in tables::motion_tables(m) {
+                b.push_str(&table_html(&t));
+            }
+        }
+        b.push_str("</section>\n");
+    }
     page(&format!("ergohand validation · {}", v.subject), &header, &b)
 }
 

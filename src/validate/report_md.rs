@@ -131,5 +131,19 @@ pub fn subject_markdown(v: &SubjectValidation, figs: &ReportFigures) -> String {
             s.push_str(&format!("- {w}\n"));
         }
     }
+    if !v.motions.is_empty() {
+        s.push_str("\n## 8. Tracked motions against the truth\n\n");
+        for m in &v.motions {
+            s.push_str(&format!(
+                "### {}\n\n`{}` against `truth_motion/{}.json`.\n\n",
+                m.motion,
+                m.file.display(),
+                m.motion
+            ));
+            for t in tables::motion_tables(m) {
+                s.push_str(&table_markdown(&t));
+            }
+        }
+    }
     s
 }

@@ -559,6 +559,122 @@ pub fn runtime_table(v: &SubjectValidation) -> Table {
     t
 }
 
+/// Centre errors of a tracked motion above this are highlighted, mm (the tracking goal's).
+pub(crate) const FLAG_MOTION_CENTRE_MM: f64 = 2.0;
+/// Fingertip errors of a tracked motion above this are highlighted, mm (the tracking goal's).
+pub(crate) const FLAG_MOTION_TIP_MM: f64 = 3.0;
+/// Contact area ratios farther than this from 1 are highlighted (the tracking goal's 20 %).
+pub(crate) const FLAG_CONTACT_RATIO: f64 = 0.2;
+
+fn rms_cells(r: Option<&super::motion_accuracy::Rms>, flag_mm: f64) -> [Cell; 2] {
+    match r {
+        Some(r) => [
+            Cell::flagged(f2(r.rms_mm), r.rms_mm > flag_mm),
+            Cell::new(f2(r.max_mm)),
+        ],
+        None => [Cell::new("–"), Cell::new("–")],
+    }
+}
+
+/// Per tracked motion: a summary (centres, their groups, fingertips, marker residuals,
+/// frames), the joints and tips, and the hold's contact areas per link against the truth.
+pub fn motion_tables(m: &super::motion_accuracy::MotionAccuracy) -> Vec<Table> {
+    let mut summary = Table::new(&["quantity", "RMS (mm)", "max (mm)"], &[false, true, true]);
+    summary.rows.push(
+        std::iter::once(Cell::new("joint centres, all solved frames"))
+            .chain(rms_cells(m.centre.as_ref(), FLAG_MOTION_CENTRE_MM))
+            .collect(),
+    );
+    for (k, r) in &m.dof_groups {
+        summary.rows.push(
+            std::iter::once(Cell::new(format!("{k}-DOF joints")))
+                .chain(rms_cells(Some(r), FLAG_MOTION_CENTRE_MM))
+                .collect(),
+        );
+    }
+    summary.rows.push(
+        std::iter::once(Cell::new("fingertips"))
+            .chain(rms_cells(m.tip.as_ref(), FLAG_MOTION_TIP_MM))
+            .collect(),
+    );
+    for (k, r) in &m.tips {
+        summary.rows.push(
+            std::iter::once(Cell::new(format!("fingertip {k}")))
+                .chain(rms_cells(Some(r), FLAG_MOTION_TIP_MM))
+                .collect(),
+        );
+    }
+    summary.rows.push(
+        std::iter::once(Cell::new("marker residuals"))
+            .chain(rms_cells(m.marker_residual.as_ref(), f64::INFINITY))
+            .collect(),
+    );
+    let lost = match &m.lost_frames {
+        Some(l) if l.is_empty() => "none".to_string(),
+        Some(l) => format!("{} ({})", l.len(), crate::track::ranges(l)),
+        None => "unknown (the trial was not read)".to_string(),
+    };
+    summary.note = format!(
+        "{} of {} frames unsolved; lost although at least {} palm and {} markers per digit were \
+         seen: {lost}. Worst joint: {}.",
+        m.unsolved_frames,
+        m.frames,
+        super::motion_accuracy::GOAL_PALM_MARKERS,
+        super::motion_accuracy::GOAL_DIGIT_MARKERS,
+        m.worst_joint.as_deref().unwrap_or("–")
+    );
+    let mut joints = Table::new(
+        &["joint", "DOF", "centre RMS (mm)", "max (mm)", "frames"],
+        &[false, true, true, true, true],
+    );
+    for j in &m.joints {
+        let [a, b] = rms_cells(Some(&j.error), FLAG_MOTION_CENTRE_MM);
+        joints.rows.push(vec![
+            Cell::new(j.joint.clone()),
+            Cell::new(j.dof.to_string()),
+            a,
+            b,
+            Cell::new(j.error.samples.to_string()),
+        ]);
+    }
+    let mut out = vec![summary, joints];
+    if let Some(h) = &m.hold_contacts {
+        let mut t = Table::new(
+            &[
+                "link",
+                "tracked (mm²)",
+                "true (mm²)",
+                "tracked / true",
+                "tracked depth (mm)",
+                "true depth (mm)",
+            ],
+            &[false, true, true, true, true, true],
+        );
+        for l in &h.links {
+            let ratio = match l.ratio {
+                Some(r) => Cell::flagged(f2(r), (r - 1.0).abs() > FLAG_CONTACT_RATIO),
+                None => Cell::new("–"),
+            };
+            t.rows.push(vec![
+                Cell::new(l.link.clone()),
+                Cell::new(format!("{:.1}", l.tracked_mm2)),
+                Cell::new(format!("{:.1}", l.true_mm2)),
+                ratio,
+                Cell::new(f2(l.tracked_depth_mm)),
+                Cell::new(f2(l.true_depth_mm)),
+            ]);
+        }
+        t.summary_rows = 1;
+        t.note = format!(
+            "Mean contact area per link over the hold (frames {}-{}, {} of them with the hand \
+             and the part tracked), the tracked skin against the true skin.",
+            h.first, h.last, h.frames
+        );
+        out.push(t);
+    }
+    out
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -601,6 +717,7 @@ mod tests {
             reconstruct_timings_s: BTreeMap::new(),
             validate_timings_s: Vec::new(),
             warnings: Vec::new(),
+            motions: Vec::new(),
             files: Vec::new(),
             thumbnail_png: None,
         }

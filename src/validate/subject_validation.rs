@@ -7,6 +7,7 @@ use super::charts::Figure;
 use super::dimension_accuracy::DimensionAccuracy;
 use super::joint_fit::JointFit;
 use super::link_accuracy::LinkAccuracy;
+use super::motion_accuracy::MotionAccuracy;
 use super::surface_error::SurfaceError;
 use super::surface_regions::SurfaceRegions;
 use crate::anatomy::Side;
@@ -122,6 +123,10 @@ pub struct SubjectValidation {
     pub validate_timings_s: Vec<(String, f64)>,
     /// The link model's warnings.
     pub warnings: Vec<String>,
+    /// Tracked motions against their truth (`truth_motion/NAME.json`); absent when none was
+    /// found.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub motions: Vec<MotionAccuracy>,
     /// Files written beside `metrics.json` (names).
     pub files: Vec<String>,
     /// The error map at thumbnail size (PNG), for the suite's index (`None`: no reference).
