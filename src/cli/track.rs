@@ -73,6 +73,13 @@ pub(crate) fn track_job(
     inputs.files.push(model_dir.join("link_model.json"));
     check_output_dir(out, &OUTPUT_FILES, "--out", &inputs)?;
 
+    let clock = std::time::Instant::now();
+    let lap = |what: &str| {
+        log::debug!(
+            "track: {what} done at {:.2} s",
+            clock.elapsed().as_secs_f64()
+        )
+    };
     let kin = load_link_model(model_dir)?;
     if kin.skeleton.side != subject.hand {
         return Err(Error::input(
@@ -89,6 +96,7 @@ pub(crate) fn track_job(
     let static_trial = subject.load_trial(TrialKind::Reference)?;
     let trial = subject.load_motion(motion)?;
     let scene = scene.map(crate::grasp::scene::read_scene).transpose()?;
+    lap("reading the trials and the scene");
     let part = scene.as_ref().map(|s| PartSetup {
         markers: s.part_markers.clone(),
         placed: s.part_pose,
@@ -100,6 +108,7 @@ pub(crate) fn track_job(
         part.as_ref(),
         &IkOptions::default(),
     )?;
+    lap("inverse kinematics");
     let mut warnings = tracked.warnings.clone();
     // The skin poses for the animation and the contacts; without it motion.json still stands.
     let glb = out.join("motion.glb");
@@ -129,6 +138,7 @@ pub(crate) fn track_job(
         }
         None => None,
     };
+    lap("loading the skin and the part");
     let replay = match (&hand, &part_shape, &scene) {
         (Some(h), Some(p), Some(s)) => Some(contacts(
             h,
@@ -141,12 +151,14 @@ pub(crate) fn track_job(
         )),
         _ => None,
     };
+    lap("contacts");
     let animated = match &hand {
         Some(h) => {
             Some(tracked.animated_scene(&kin, &h.hand, part_shape.as_ref().map(|p| &p.mesh))?)
         }
         None => None,
     };
+    lap("the animated scene");
     let records = replay
         .as_ref()
         .map(ContactReplay::records)
@@ -156,11 +168,13 @@ pub(crate) fn track_job(
     std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
     let written = out.join("motion.json");
     file.write(&written)?;
+    lap("motion.json");
     match &animated {
         Some(a) => write_glb(&glb, a, Units::Metres)?,
         None if glb.is_file() => std::fs::remove_file(&glb).map_err(|e| Error::io(&glb, e))?,
         None => {}
     }
+    lap("motion.glb");
     for w in &warnings {
         log::log!(voice.warn(), "{w}");
     }
