@@ -101,44 +101,56 @@ pub(crate) fn track_job(
         markers: s.part_markers.clone(),
         placed: s.part_pose,
     });
-    let tracked = track_trial(
-        &kin,
-        &static_trial,
-        &trial,
-        part.as_ref(),
-        &IkOptions::default(),
-    )?;
-    lap("inverse kinematics");
-    let mut warnings = tracked.warnings.clone();
-    // The skin poses for the animation and the contacts; without it motion.json still stands.
+    // The skin and the part are read while the frames are solved.
     let glb = out.join("motion.glb");
     let skin = model_dir.join("skin.obj");
-    let hand = if skin.is_file() {
-        Some(SkinnedHand::load(model_dir)?)
-    } else {
+    let replay_opts = ReplayOptions::default();
+    let (tracked, loaded) = rayon::join(
+        || {
+            track_trial(
+                &kin,
+                &static_trial,
+                &trial,
+                part.as_ref(),
+                &IkOptions::default(),
+            )
+        },
+        || -> Result<_> {
+            // The skin poses for the animation and the contacts; without it motion.json still
+            // stands.
+            let hand = if skin.is_file() {
+                Some(SkinnedHand::load(model_dir)?)
+            } else {
+                None
+            };
+            let part_shape = match &scene {
+                // The part in its own frame, where the markers' positions are given.
+                Some(s) => Some(crate::grasp::scene_part_with_band(
+                    s,
+                    &nalgebra::Isometry3::identity(),
+                    replay_opts.tolerance_mm,
+                )?),
+                None => None,
+            };
+            Ok((hand, part_shape))
+        },
+    );
+    let tracked = tracked?;
+    let (hand, part_shape) = loaded?;
+    lap("inverse kinematics, reading the skin and the part");
+    let mut warnings = tracked.warnings.clone();
+    if hand.is_none() {
         warnings.push(format!(
             "{}: not found, so {} is not written and contacts are not computed; re-run \
              reconstruct into the --model folder",
             skin.display(),
             glb.display()
         ));
-        None
-    };
-    let replay_opts = ReplayOptions::default();
-    let part_shape = match &scene {
-        Some(s) => {
-            // The part in its own frame, where the markers' positions are given.
-            let (p, w) = crate::grasp::scene_part_with_band(
-                s,
-                &nalgebra::Isometry3::identity(),
-                replay_opts.tolerance_mm,
-            )?;
-            warnings.extend(w);
-            Some(p)
-        }
-        None => None,
-    };
-    lap("loading the skin and the part");
+    }
+    let part_shape = part_shape.map(|(p, w)| {
+        warnings.extend(w);
+        p
+    });
     let replay = match (&hand, &part_shape, &scene) {
         (Some(h), Some(p), Some(s)) => Some(contacts(
             h,
@@ -167,14 +179,17 @@ pub(crate) fn track_job(
     file.warnings = warnings.clone();
     std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
     let written = out.join("motion.json");
-    file.write(&written)?;
-    lap("motion.json");
-    match &animated {
-        Some(a) => write_glb(&glb, a, Units::Metres)?,
-        None if glb.is_file() => std::fs::remove_file(&glb).map_err(|e| Error::io(&glb, e))?,
-        None => {}
-    }
-    lap("motion.glb");
+    let (json, glb_written) = rayon::join(
+        || file.write(&written),
+        || match &animated {
+            Some(a) => write_glb(&glb, a, Units::Metres),
+            None if glb.is_file() => std::fs::remove_file(&glb).map_err(|e| Error::io(&glb, e)),
+            None => Ok(()),
+        },
+    );
+    json?;
+    glb_written?;
+    lap("motion.json and motion.glb");
     for w in &warnings {
         log::log!(voice.warn(), "{w}");
     }

@@ -316,16 +316,20 @@ fn classify(
     known: &mut Option<Known>,
     tol: f64,
 ) -> (Status, f64) {
-    if broad.decides && part.grid.zone(p) == Zone::Outside {
-        // Apart for as long as it stays in the outside zone or its last query says so.
-        let by_query = known.map_or(f64::NEG_INFINITY, |k| k.signed - (p - k.at).norm() - tol);
-        return (Status::Apart, broad.clearance(p).max(by_query));
-    }
-    if let Some(k) = known {
-        let moved = (p - k.at).norm();
+    // Apart by the last query or by the broad phase's outside zone, whichever is asked first:
+    // the query's bound first spares the grid lookup.
+    let moved = known.map(|k| (p - k.at).norm());
+    if let (Some(k), Some(moved)) = (*known, moved) {
         if k.signed - moved > tol {
             return (Status::Apart, k.signed - moved - tol);
         }
+    }
+    if broad.decides && part.grid.zone(p) == Zone::Outside {
+        // Apart for as long as it stays in the outside zone (its last query, if any, no
+        // longer says so).
+        return (Status::Apart, broad.clearance(p));
+    }
+    if let (Some(k), Some(moved)) = (*known, moved) {
         if k.signed + moved <= tol {
             let st = Status::Touching {
                 signed: k.signed,
