@@ -90,6 +90,13 @@ pub(crate) fn track_job(
     inputs.files.push(model_dir.join("link_model.json"));
     check_output_dir(out, &OUTPUT_FILES, "--out", &inputs)?;
 
+    let clock = std::time::Instant::now();
+    let lap = |what: &str| {
+        log::debug!(
+            "track: {what} done at {:.2} s",
+            clock.elapsed().as_secs_f64()
+        )
+    };
     let mut kin = load_link_model(model_dir)?;
     if kin.skeleton.side != subject.hand {
         return Err(Error::input(
@@ -106,24 +113,50 @@ pub(crate) fn track_job(
     let static_trial = subject.load_trial(TrialKind::Reference)?;
     let trial = subject.load_motion(motion)?;
     let scene = scene.map(crate::grasp::scene::read_scene).transpose()?;
+    lap("reading the trials and the scene");
     let part = scene.as_ref().map(|s| PartSetup {
         markers: s.part_markers.clone(),
         placed: s.part_pose,
     });
-    let tracked = track_trial(
-        &kin,
-        &static_trial,
-        &trial,
-        part.as_ref(),
-        &IkOptions::default(),
-    )?;
-    let mut warnings = tracked.warnings.clone();
-    // The skin poses for the animation and the contacts; without it motion.json still stands.
+    // The skin and the part are read while the frames are solved.
     let glb = out.join("motion.glb");
     let skin = model_dir.join("skin.obj");
-    let hand = if skin.is_file() {
-        Some(SkinnedHand::load(model_dir)?)
-    } else {
+    let replay_opts = ReplayOptions::default();
+    let (tracked, loaded) = rayon::join(
+        || {
+            track_trial(
+                &kin,
+                &static_trial,
+                &trial,
+                part.as_ref(),
+                &IkOptions::default(),
+            )
+        },
+        || -> Result<_> {
+            // The skin poses for the animation and the contacts; without it motion.json still
+            // stands.
+            let hand = if skin.is_file() {
+                Some(SkinnedHand::load(model_dir)?)
+            } else {
+                None
+            };
+            let part_shape = match &scene {
+                // The part in its own frame, where the markers' positions are given.
+                Some(s) => Some(crate::grasp::scene_part_with_band(
+                    s,
+                    &nalgebra::Isometry3::identity(),
+                    replay_opts.tolerance_mm,
+                )?),
+                None => None,
+            };
+            Ok((hand, part_shape))
+        },
+    );
+    let tracked = tracked?;
+    let (hand, part_shape) = loaded?;
+    lap("inverse kinematics, reading the skin and the part");
+    let mut warnings = tracked.warnings.clone();
+    if hand.is_none() {
         warnings.push(format!(
             "{}: not found, so {} and the contact map ({}, {}) are not written and contacts \
              are not computed; re-run reconstruct into the --model folder",
@@ -132,27 +165,16 @@ pub(crate) fn track_job(
             OUTPUT_FILES[2],
             OUTPUT_FILES[3]
         ));
-        None
-    };
+    }
     // The fingertips the hand carries: derived from the skin (the link model has none), as
-    // the contacts and the animation see them.
+    // the contacts and the animation see them (the fit does not use them).
     if let Some(h) = &hand {
         kin.skeleton.tips = h.hand.skeleton.tips;
     }
-    let replay_opts = ReplayOptions::default();
-    let part_shape = match &scene {
-        Some(s) => {
-            // The part in its own frame, where the markers' positions are given.
-            let (p, w) = crate::grasp::scene_part_with_band(
-                s,
-                &nalgebra::Isometry3::identity(),
-                replay_opts.tolerance_mm,
-            )?;
-            warnings.extend(w);
-            Some(p)
-        }
-        None => None,
-    };
+    let part_shape = part_shape.map(|(p, w)| {
+        warnings.extend(w);
+        p
+    });
     let replay = match (&hand, &part_shape, &scene) {
         (Some(h), Some(p), Some(s)) => Some(contacts(
             h,
@@ -165,18 +187,21 @@ pub(crate) fn track_job(
         )),
         _ => None,
     };
+    lap("contacts");
     let animated = match &hand {
         Some(h) => {
             Some(tracked.animated_scene(&kin, &h.hand, part_shape.as_ref().map(|p| &p.mesh))?)
         }
         None => None,
     };
+    lap("the animated scene");
     let map = match (&hand, &part_shape, &replay) {
         (Some(h), Some(p), Some(r)) => Some(crate::validate::motion_contact_map::contact_map(
             h, &kin, &tracked, &p.mesh, r,
         )?),
         _ => None,
     };
+    lap("the contact map");
     let records = replay
         .as_ref()
         .map(ContactReplay::records)
@@ -185,12 +210,17 @@ pub(crate) fn track_job(
     file.warnings = warnings.clone();
     std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
     let written = out.join("motion.json");
-    file.write(&written)?;
-    match &animated {
-        Some(a) => write_glb(&glb, a, Units::Metres)?,
-        None if glb.is_file() => std::fs::remove_file(&glb).map_err(|e| Error::io(&glb, e))?,
-        None => {}
-    }
+    let (json, glb_written) = rayon::join(
+        || file.write(&written),
+        || match &animated {
+            Some(a) => write_glb(&glb, a, Units::Metres),
+            None if glb.is_file() => std::fs::remove_file(&glb).map_err(|e| Error::io(&glb, e)),
+            None => Ok(()),
+        },
+    );
+    json?;
+    glb_written?;
+    lap("motion.json and motion.glb");
     let map_png = write_map(out, map.as_ref())?;
     if map.is_none() && hand.is_some() {
         log::log!(
@@ -216,6 +246,7 @@ pub(crate) fn track_job(
         sources.push(s.path.display().to_string());
     }
     write_charts_and_page(out, &title, &sources, &file, map_png)?;
+    lap("the contact map's pictures, the charts and the page");
     for w in &warnings {
         log::log!(voice.warn(), "{w}");
     }

@@ -275,35 +275,300 @@ fn exact(part: &PartShape, p: &Point) -> Option<Known> {
     }
 }
 
+/// What the broad phase alone can say about the part: whether its outside zone decides
+/// "apart" for the tolerance, and the box outside which every point is in that zone.
+#[derive(Clone, Copy, Debug)]
+struct Broad {
+    decides: bool,
+    lo: Point,
+    hi: Point,
+}
+
+impl Broad {
+    /// A grid cell is near or inside only if it meets the part's box grown by the band, so a
+    /// point farther than one cell beyond that box lies in an outside cell.
+    fn of(part: &PartShape, tol: f64) -> Broad {
+        let grow = part.grid.band + part.grid.cell_mm() + 1e-6;
+        Broad {
+            decides: part.grid.band >= tol,
+            lo: part.lo - nalgebra::Vector3::repeat(grow),
+            hi: part.hi + nalgebra::Vector3::repeat(grow),
+        }
+    }
+
+    /// How far `p` can move and stay in the outside zone (0 inside the box).
+    fn clearance(&self, p: &Point) -> f64 {
+        (0..3)
+            .map(|a| (self.lo[a] - p[a]).max(p[a] - self.hi[a]).max(0.0).powi(2))
+            .sum::<f64>()
+            .sqrt()
+    }
+}
+
 /// Classify the vertex at `p` given what it knew, querying the part only when the bounds
 /// cannot decide (the signed distance is 1-Lipschitz: it changes by at most the distance
-/// moved).
-fn classify(part: &PartShape, p: &Point, known: &mut Option<Known>, tol: f64) -> Status {
-    if part.grid.zone(p) == Zone::Outside && part.grid.band >= tol {
-        return Status::Apart;
-    }
-    if let Some(k) = known {
-        let moved = (p - k.at).norm();
+/// moved). Also returns how far the vertex can move from `p` and still be classified apart
+/// without a query (`-inf` when touching).
+fn classify(
+    part: &PartShape,
+    broad: &Broad,
+    p: &Point,
+    known: &mut Option<Known>,
+    tol: f64,
+) -> (Status, f64) {
+    // Apart by the last query or by the broad phase's outside zone, whichever is asked first:
+    // the query's bound first spares the grid lookup.
+    let moved = known.map(|k| (p - k.at).norm());
+    if let (Some(k), Some(moved)) = (*known, moved) {
         if k.signed - moved > tol {
-            return Status::Apart;
+            return (Status::Apart, k.signed - moved - tol);
         }
+    }
+    if broad.decides && part.grid.zone(p) == Zone::Outside {
+        // Apart for as long as it stays in the outside zone (its last query, if any, no
+        // longer says so).
+        return (Status::Apart, broad.clearance(p));
+    }
+    if let (Some(k), Some(moved)) = (*known, moved) {
         if k.signed + moved <= tol {
-            return Status::Touching {
+            let st = Status::Touching {
                 signed: k.signed,
                 slack: moved,
                 projection: k.projection + (p - k.at),
             };
+            return (st, f64::NEG_INFINITY);
         }
     }
     *known = exact(part, p);
     match known {
-        Some(k) if k.signed <= tol => Status::Touching {
-            signed: k.signed,
-            slack: 0.0,
-            projection: k.projection,
-        },
-        _ => Status::Apart,
+        Some(k) if k.signed <= tol => (
+            Status::Touching {
+                signed: k.signed,
+                slack: 0.0,
+                projection: k.projection,
+            },
+            f64::NEG_INFINITY,
+        ),
+        Some(k) => (Status::Apart, k.signed - tol),
+        None => (Status::Apart, f64::NEG_INFINITY),
     }
+}
+
+/// Linear blend skinning's 3x4 `[R − I | t]` of a link transform, as
+/// [`crate::pose::skinning::SkinBinding::linear_into`] forms it.
+fn displacement(t: &Isometry3<f64>) -> [f64; 12] {
+    let r = t.rotation.to_rotation_matrix();
+    let m = r.matrix();
+    let v = &t.translation.vector;
+    [
+        m[(0, 0)] - 1.0,
+        m[(0, 1)],
+        m[(0, 2)],
+        v.x,
+        m[(1, 0)],
+        m[(1, 1)] - 1.0,
+        m[(1, 2)],
+        v.y,
+        m[(2, 0)],
+        m[(2, 1)],
+        m[(2, 2)] - 1.0,
+        v.z,
+    ]
+}
+
+/// A touching vertex of one frame, with what the link's aggregation needs.
+#[derive(Clone, Copy, Debug)]
+struct Touch {
+    /// Index in its link's vertex list.
+    j: u32,
+    /// Skin vertex.
+    vertex: u32,
+    /// Place in its block.
+    slot: u32,
+    signed: f64,
+    slack: f64,
+    projection: Point,
+    at: Point,
+}
+
+/// Vertices per block: small enough that a block near a contact holds few apart vertices,
+/// large enough that the per-block bound costs little beside the vertices it spares.
+const BLOCK: usize = 32;
+
+/// A spatial block of one link's vertices with a dense state: their rest positions and
+/// weights, what each last learnt, and how far the block may move from where it was last
+/// classified and still be all apart without posing a vertex.
+struct Block {
+    link: usize,
+    /// Rest sphere about the vertices.
+    centre: Point,
+    radius: f64,
+    /// The links the vertices' weights blend.
+    blend: Vec<usize>,
+    /// Per vertex: index in the link's vertex list, skin vertex, rest position.
+    j: Vec<u32>,
+    vertex: Vec<u32>,
+    rest: Vec<[f64; 3]>,
+    /// Weights of vertex `v`: `weights[w_start[v]..w_start[v + 1]]`, in the skin's order.
+    w_start: Vec<u32>,
+    weights: Vec<(u32, f64)>,
+    known: Vec<Option<Known>>,
+    /// Where the blend links took the centre, and their rotations inverted, when the block
+    /// was last classified; empty before.
+    ref_centre: Vec<Point>,
+    ref_rotation: Vec<nalgebra::UnitQuaternion<f64>>,
+    /// The least distance a vertex could move then and still be apart unqueried.
+    margin: f64,
+    /// This frame's touching vertices.
+    touching: Vec<Touch>,
+}
+
+impl Block {
+    /// The blocks of `hand`: each link's vertices in Morton order of their rest positions, cut
+    /// into runs of [`BLOCK`].
+    fn of(hand: &SkinnedHand) -> Vec<Block> {
+        let rest = &hand.rest_mesh().vertices;
+        let mut out = Vec::new();
+        for (l, vs) in hand.link_vertices().iter().enumerate() {
+            let Some(lo) = vs.iter().map(|&i| rest[i]).reduce(|a, b| a.inf(&b)) else {
+                continue;
+            };
+            let mut order: Vec<(u64, usize)> = vs
+                .iter()
+                .enumerate()
+                .map(|(j, &i)| {
+                    let q = (rest[i] - lo).map(|x| (x / 0.25).clamp(0.0, 1048575.0) as u64);
+                    (morton(q.x, q.y, q.z), j)
+                })
+                .collect();
+            order.sort_unstable();
+            for run in order.chunks(BLOCK) {
+                let js: Vec<usize> = run.iter().map(|&(_, j)| j).collect();
+                let c = js
+                    .iter()
+                    .fold(nalgebra::Vector3::zeros(), |a, &j| a + rest[vs[j]].coords)
+                    / js.len() as f64;
+                let centre = Point::from(c);
+                let radius = js
+                    .iter()
+                    .map(|&j| (rest[vs[j]] - centre).norm())
+                    .fold(0.0, f64::max);
+                let mut w_start = vec![0u32];
+                let mut weights = Vec::new();
+                for &j in &js {
+                    weights.extend(hand.hand.weights[vs[j]].iter().map(|&(k, w)| (k as u32, w)));
+                    w_start.push(weights.len() as u32);
+                }
+                let mut blend: Vec<usize> = weights.iter().map(|&(k, _)| k as usize).collect();
+                blend.push(l);
+                blend.sort_unstable();
+                blend.dedup();
+                out.push(Block {
+                    link: l,
+                    centre,
+                    radius,
+                    blend,
+                    j: js.iter().map(|&j| j as u32).collect(),
+                    vertex: js.iter().map(|&j| vs[j] as u32).collect(),
+                    rest: js
+                        .iter()
+                        .map(|&j| {
+                            let p = rest[vs[j]];
+                            [p.x, p.y, p.z]
+                        })
+                        .collect(),
+                    w_start,
+                    weights,
+                    known: vec![None; js.len()],
+                    ref_centre: Vec::new(),
+                    ref_rotation: Vec::new(),
+                    margin: f64::NEG_INFINITY,
+                    touching: Vec::new(),
+                });
+            }
+        }
+        out
+    }
+
+    /// Whether every vertex is still surely apart under the link transforms `t`: a blended
+    /// vertex moved by at most `max_k |T_k v - T'_k v|` since the reference transforms `T'`,
+    /// and for `v` in the rest sphere that is at most `|T_k c - T'_k c| + ‖R_k - R'_k‖ r`,
+    /// the spectral norm being `2 sin(θ/2)` of the rotation between them.
+    fn still_apart(&self, t: &[Isometry3<f64>]) -> bool {
+        if self.ref_centre.is_empty() || self.margin <= 0.0 {
+            return false;
+        }
+        let mut moved = 0.0f64;
+        for ((&k, c0), q0) in self
+            .blend
+            .iter()
+            .zip(&self.ref_centre)
+            .zip(&self.ref_rotation)
+        {
+            let turn = (q0 * t[k].rotation).imag().norm();
+            moved = moved.max((t[k] * self.centre - c0).norm() + 2.0 * turn * self.radius);
+        }
+        // Headroom for rounding and for weights summing to 1 only to 1e-6.
+        moved * (1.0 + 1e-5) + 1e-9 < self.margin
+    }
+
+    /// Pose and classify every vertex (`mats`: [`displacement`] of `t`), remembering the
+    /// touching ones and the block's margin.
+    fn classify(
+        &mut self,
+        part: &PartShape,
+        broad: &Broad,
+        t: &[Isometry3<f64>],
+        mats: &[[f64; 12]],
+        tol: f64,
+    ) {
+        self.touching.clear();
+        let mut margin = f64::INFINITY;
+        for v in 0..self.rest.len() {
+            // The same arithmetic as the skin binding's, so the positions are the same.
+            let [x, y, z] = self.rest[v];
+            let (mut dx, mut dy, mut dz) = (0.0, 0.0, 0.0);
+            let ws = &self.weights[self.w_start[v] as usize..self.w_start[v + 1] as usize];
+            for &(l, a) in ws {
+                let m = &mats[l as usize];
+                dx += a * (m[0] * x + m[1] * y + m[2] * z + m[3]);
+                dy += a * (m[4] * x + m[5] * y + m[6] * z + m[7]);
+                dz += a * (m[8] * x + m[9] * y + m[10] * z + m[11]);
+            }
+            let p = Point::new(x + dx, y + dy, z + dz);
+            let (st, m) = classify(part, broad, &p, &mut self.known[v], tol);
+            margin = margin.min(m);
+            if let Status::Touching {
+                signed,
+                slack,
+                projection,
+            } = st
+            {
+                self.touching.push(Touch {
+                    j: self.j[v],
+                    vertex: self.vertex[v],
+                    slot: v as u32,
+                    signed,
+                    slack,
+                    projection,
+                    at: p,
+                });
+            }
+        }
+        self.margin = margin;
+        self.ref_centre.clear();
+        self.ref_rotation.clear();
+        for &k in &self.blend {
+            self.ref_centre.push(t[k] * self.centre);
+            self.ref_rotation.push(t[k].rotation.inverse());
+        }
+    }
+}
+
+/// Interleave the low 20 bits of `x`, `y`, `z`.
+fn morton(x: u64, y: u64, z: u64) -> u64 {
+    let spread = |v: u64| (0..20).fold(0, |r, b| r | (((v >> b) & 1) << (3 * b)));
+    spread(x) | (spread(y) << 1) | (spread(z) << 2)
 }
 
 /// Contacts of `hand` (the individual hand of the model `kin` was read from) with `part` (in
@@ -347,9 +612,12 @@ pub struct PosedFrame {
 /// Frames run in order and each vertex remembers its last exact query: a vertex is queried
 /// again only when the distance it has moved since could have carried it across the
 /// tolerance, and the deepest penetration of a link is found by branch and bound over its
-/// vertices' depth intervals, querying only those that could still be deepest. The contact
-/// areas and depths are exactly those of querying every vertex in every frame; a contact
-/// map's projection is the last exact one moved with the vertex. Vertices run in parallel.
+/// vertices' depth intervals, querying only those that could still be deepest. A link whose
+/// blended vertices cannot reach the part's box is not posed, nor is a block of a link's
+/// vertices (neighbours at rest) that has not moved, by a bound on its skinning transforms,
+/// as far as its vertices could move and stay apart. The contact areas and depths are exactly
+/// those of querying every vertex in every frame; a contact map's projection is the last exact
+/// one moved with the vertex. Blocks run in parallel.
 pub fn replay_frames(
     hand: &SkinnedHand,
     frames_in: &[Option<PosedFrame>],
@@ -359,20 +627,17 @@ pub fn replay_frames(
     let n = frames_in.len();
     let skin = hand.rest_mesh();
     let areas = vertex_areas(skin);
-    let links = hand.vertex_link();
     let radius = mean_edge_length(skin).max(1e-3);
     let grid = VertexGrid::new(&part.mesh.vertices, radius);
     let tol = opts.tolerance_mm;
-    let mut known: Vec<Option<Known>> = vec![None; skin.n_vertices()];
+    let broad = Broad::of(part, tol);
     let bounds = LinkBound::of(hand);
-    let mut posed = Vec::new();
-    let mut link_posed = Vec::new();
-    let mut near: Vec<usize> = Vec::new();
-    let mut status: Vec<(Status, Option<Known>)> = Vec::new();
+    let mut blocks = Block::of(hand);
     let mut part_stamp = vec![usize::MAX; part.mesh.n_vertices()];
     let mut skin_count = vec![0u32; skin.n_vertices()];
     let mut part_count = vec![0u32; part.mesh.n_vertices()];
     let mut frames = Vec::with_capacity(n);
+    let mut touching: Vec<(Touch, usize)> = Vec::new();
     for (f, frame) in frames_in.iter().enumerate() {
         let Some(frame) = frame else {
             frames.push(None);
@@ -380,67 +645,58 @@ pub fn replay_frames(
         };
         let to_part = frame.part.inverse();
         let transforms: Vec<Isometry3<f64>> = frame.links.iter().map(|l| to_part * l).collect();
+        let mats: Vec<[f64; 12]> = transforms.iter().map(displacement).collect();
         // Only the links that may come within the tolerance of the part's box are posed and
         // probed; the others' vertices are apart, and keep what they knew.
-        near.clear();
-        posed.clear();
-        for (l, b) in bounds.iter().enumerate() {
-            if !hand.link_vertices()[l].is_empty()
-                && b.may_reach(l, &transforms, &part.lo, &part.hi, tol)
-            {
-                hand.pose_link(l, &transforms, &mut link_posed);
-                near.extend_from_slice(&hand.link_vertices()[l]);
-                posed.extend_from_slice(&link_posed);
-            }
-        }
-        let known_ref = &known;
-        near.par_iter()
-            .zip(posed.par_iter())
-            .with_min_len(1024)
-            .map(|(&i, p)| {
-                let mut k = known_ref[i];
-                let st = classify(part, p, &mut k, tol);
-                (st, k)
+        let near: Vec<bool> = bounds
+            .iter()
+            .enumerate()
+            .map(|(l, b)| {
+                !hand.link_vertices()[l].is_empty()
+                    && b.may_reach(l, &transforms, &part.lo, &part.hi, tol)
             })
-            .collect_into_vec(&mut status);
-        for (&i, (_, k)) in near.iter().zip(&status) {
-            known[i] = *k;
-        }
+            .collect();
+        blocks.par_iter_mut().with_min_len(8).for_each(|b| {
+            if !near[b.link] || b.still_apart(&transforms) {
+                b.touching.clear();
+            } else {
+                b.classify(part, &broad, &transforms, &mats, tol);
+            }
+        });
 
         let mut area = [0.0; 17];
         let mut depth = [0.0f64; 17];
         let mut skin_touch = Vec::new();
         let mut under = Vec::new();
-        // Per link, the vertices whose depth is not known exactly: (upper bound, vertex).
+        // In each link's vertex order, as the areas are summed in it.
+        touching.clear();
+        for (bi, b) in blocks.iter().enumerate() {
+            touching.extend(b.touching.iter().map(|&t| (t, bi)));
+        }
+        touching.sort_unstable_by_key(|(t, bi)| (blocks[*bi].link, t.j));
+        // Per link, the vertices whose depth is not known exactly: (upper bound, touch).
         let mut open: Vec<Vec<(f64, usize)>> = vec![Vec::new(); 17];
-        for (j, (st, _)) in status.iter().enumerate() {
-            let i = near[j];
-            let Status::Touching {
-                signed,
-                slack,
-                projection,
-            } = *st
-            else {
-                continue;
-            };
-            let l = links[i];
+        for (e, &(tc, bi)) in touching.iter().enumerate() {
+            let l = blocks[bi].link;
+            let i = tc.vertex as usize;
             area[l] += areas[i];
-            depth[l] = depth[l].max(-(signed + slack));
-            if slack > 0.0 && -(signed - slack) > depth[l] {
-                open[l].push((-(signed - slack), j));
+            depth[l] = depth[l].max(-(tc.signed + tc.slack));
+            if tc.slack > 0.0 && -(tc.signed - tc.slack) > depth[l] {
+                open[l].push((-(tc.signed - tc.slack), e));
             }
-            skin_touch.push(i as u32);
-            grid.within(&part.mesh.vertices, &projection, radius, &mut under);
+            skin_touch.push(tc.vertex);
+            grid.within(&part.mesh.vertices, &tc.projection, radius, &mut under);
         }
         for (l, cands) in open.iter_mut().enumerate() {
             cands.sort_by(|a, b| b.0.total_cmp(&a.0));
-            for &(upper, j) in cands.iter() {
+            for &(upper, e) in cands.iter() {
                 if upper <= depth[l] {
                     break;
                 }
-                let i = near[j];
-                known[i] = exact(part, &posed[j]);
-                if let Some(k) = known[i] {
+                let (tc, bi) = touching[e];
+                let k = exact(part, &tc.at);
+                blocks[bi].known[tc.slot as usize] = k;
+                if let Some(k) = k {
                     depth[l] = depth[l].max(-k.signed);
                 }
             }
