@@ -149,8 +149,16 @@ pub fn demo(out: &Path) -> Result<()> {
             grasp.timings_s.total_s,
             out.join("grasp").join("grasp.json").display()
         );
+        let scored = v
+            .motions
+            .iter()
+            .find(|m| m.motion == motion)
+            .and_then(|m| Some((m.centre.as_ref()?.rms_mm, m.tip.as_ref()?.rms_mm)))
+            .map_or(String::new(), |(c, t)| {
+                format!(" joint centres {c:.2} mm RMS from the truth, fingertips {t:.1} mm;")
+            });
         println!(
-            "  track of the captured grasp `{motion}` with the reconstructed hand: {} of {} frames solved, {} warnings, {:.1} s; {}",
+            "  track of the captured grasp `{motion}` with the reconstructed hand: {} of {} frames solved,{scored} {} warnings, {:.1} s; {}",
             tracked.frames - tracked.unsolved,
             tracked.frames,
             tracked.warnings.len(),
