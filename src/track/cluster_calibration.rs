@@ -8,9 +8,9 @@
 //! anatomical frame.
 
 use super::attachment::{AttachedMarker, Attachment};
-use super::inverse_kinematics::{observations, IkOptions, Solver};
+use super::inverse_kinematics::{moved_by_held, observations, IkOptions, Solver};
 use super::kinematics::Kinematics;
-use crate::anatomy::{Joint, Link};
+use crate::anatomy::Link;
 use crate::geometry::Point;
 use crate::mocap::trajectories::Trajectories;
 
@@ -47,7 +47,7 @@ pub fn attach_from_motion(
             let (Some(state), Some(p)) = (&sol.state, motion.positions[col][f]) else {
                 continue;
             };
-            if !p.coords.iter().all(|x| x.is_finite()) || held_between(*link, &sol.held) {
+            if !p.coords.iter().all(|x| x.is_finite()) || moved_by_held(*link, &sol.held) {
                 continue;
             }
             let t = kin.evaluate(state).links[link.index()];
@@ -73,23 +73,4 @@ pub fn attach_from_motion(
         attached.push(name.clone());
     }
     attached
-}
-
-/// Whether a joint between the palm and `link` is among `held` (the link's pose then rests on
-/// stale angles).
-fn held_between(link: Link, held: &[Joint]) -> bool {
-    match link {
-        Link::Palm => false,
-        Link::Arm => held.contains(&Joint::Wrist),
-        l => {
-            let mut j = l.joint();
-            while let Some(jj) = j.filter(|&jj| jj != Joint::Wrist) {
-                if held.contains(&jj) {
-                    return true;
-                }
-                j = jj.parent();
-            }
-            false
-        }
-    }
 }

@@ -661,20 +661,7 @@ impl<'a> Solver<'a> {
         self.att
             .markers
             .iter()
-            .map(|m| match m.link {
-                Link::Palm => false,
-                Link::Arm => held.contains(&Joint::Wrist),
-                l => {
-                    let mut j = l.joint();
-                    while let Some(jj) = j.filter(|&jj| jj != Joint::Wrist) {
-                        if held.contains(&jj) {
-                            return true;
-                        }
-                        j = jj.parent();
-                    }
-                    false
-                }
-            })
+            .map(|m| moved_by_held(m.link, held))
             .collect()
     }
 
@@ -915,6 +902,26 @@ impl<'a> Solver<'a> {
             }
         }
         (h, g)
+    }
+}
+
+/// Whether one of the `held` joints moves `link` relative to the palm (the solve's root: the
+/// wrist moves the forearm, a digit's joints its phalanges), so that the link's pose rests on
+/// stale angles.
+pub(super) fn moved_by_held(link: Link, held: &[Joint]) -> bool {
+    match link {
+        Link::Palm => false,
+        Link::Arm => held.contains(&Joint::Wrist),
+        l => {
+            let mut j = l.joint();
+            while let Some(jj) = j.filter(|&jj| jj != Joint::Wrist) {
+                if held.contains(&jj) {
+                    return true;
+                }
+                j = jj.parent();
+            }
+            false
+        }
     }
 }
 
