@@ -778,15 +778,7 @@ pub fn batch(subjects_dir: &Path, out: &Path, opts: &BatchOptions) -> Result<Bat
         return Ok(summary);
     }
     if failed.is_empty() {
-        let mut names = failed_motions
-            .iter()
-            .take(10)
-            .cloned()
-            .collect::<Vec<_>>()
-            .join(", ");
-        if failed_motions.len() > 10 {
-            names.push_str(&format!(" and {} more", failed_motions.len() - 10));
-        }
+        let names = first_ten(&failed_motions);
         return Err(Error::invalid(format!(
             "batch: {} motions could not be tracked ({names}); the subjects and other motions \
              are done, see {}",
@@ -794,21 +786,27 @@ pub fn batch(subjects_dir: &Path, out: &Path, opts: &BatchOptions) -> Result<Bat
             out.join(SUMMARY_MD).display()
         )));
     }
-    let mut names = failed
-        .iter()
-        .take(10)
-        .copied()
-        .collect::<Vec<_>>()
-        .join(", ");
-    if failed.len() > 10 {
-        names.push_str(&format!(" and {} more", failed.len() - 10));
-    }
+    let names = first_ten(&failed);
     Err(Error::invalid(format!(
         "batch: {} of {} subjects failed ({names}); the others are done, see {}",
         failed.len(),
         summary.subjects.len(),
         out.join(SUMMARY_MD).display()
     )))
+}
+
+/// The first ten of `names` joined by commas, and how many more there are.
+fn first_ten<S: AsRef<str>>(names: &[S]) -> String {
+    let mut out = names
+        .iter()
+        .take(10)
+        .map(AsRef::as_ref)
+        .collect::<Vec<_>>()
+        .join(", ");
+    if names.len() > 10 {
+        out.push_str(&format!(" and {} more", names.len() - 10));
+    }
+    out
 }
 
 #[cfg(test)]

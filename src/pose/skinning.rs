@@ -264,7 +264,7 @@ impl SkinBinding {
 }
 
 /// `[R − I | t]` row-major: the displacement of a point under the isometry.
-fn displacement_matrix(t: &Isometry3<f64>) -> [f64; 12] {
+pub(crate) fn displacement_matrix(t: &Isometry3<f64>) -> [f64; 12] {
     let r = t.rotation.to_rotation_matrix();
     let m = r.matrix();
     let v = &t.translation.vector;

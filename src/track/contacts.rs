@@ -25,6 +25,8 @@ use crate::geometry::{Point, TriMesh};
 use crate::grasp::broad::Zone;
 use crate::grasp::contact::{vertex_areas, PartShape, Probe};
 use crate::grasp::hand::{PosableHand, SkinnedHand};
+// The same `[R − I | t]` linear blend skinning forms, so a posed vertex is the very one.
+use crate::pose::skinning::displacement_matrix;
 use nalgebra::Isometry3;
 use rayon::prelude::*;
 
@@ -354,28 +356,6 @@ fn classify(
     }
 }
 
-/// Linear blend skinning's 3x4 `[R − I | t]` of a link transform, as
-/// [`crate::pose::skinning::SkinBinding::linear_into`] forms it.
-fn displacement(t: &Isometry3<f64>) -> [f64; 12] {
-    let r = t.rotation.to_rotation_matrix();
-    let m = r.matrix();
-    let v = &t.translation.vector;
-    [
-        m[(0, 0)] - 1.0,
-        m[(0, 1)],
-        m[(0, 2)],
-        v.x,
-        m[(1, 0)],
-        m[(1, 1)] - 1.0,
-        m[(1, 2)],
-        v.y,
-        m[(2, 0)],
-        m[(2, 1)],
-        m[(2, 2)] - 1.0,
-        v.z,
-    ]
-}
-
 /// A touching vertex of one frame, with what the link's aggregation needs.
 #[derive(Clone, Copy, Debug)]
 struct Touch {
@@ -645,7 +625,7 @@ pub fn replay_frames(
         };
         let to_part = frame.part.inverse();
         let transforms: Vec<Isometry3<f64>> = frame.links.iter().map(|l| to_part * l).collect();
-        let mats: Vec<[f64; 12]> = transforms.iter().map(displacement).collect();
+        let mats: Vec<[f64; 12]> = transforms.iter().map(displacement_matrix).collect();
         // Only the links that may come within the tolerance of the part's box are posed and
         // probed; the others' vertices are apart, and keep what they knew.
         let near: Vec<bool> = bounds
