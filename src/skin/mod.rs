@@ -7,10 +7,13 @@
 //!   (Sumner & Popović's correspondence energy with the constraints of equation 2).
 //! * [`transfer`] carries the fitted deformation back to the high-resolution template through
 //!   per-face frames (equation 3).
+//! * [`distal_frame`] aims each digit's last joint along its distal phalanx, carried from the
+//!   template by homology (no joint beyond it says where the phalanx points).
 //! * [`shape_prior`] adds what the population says of the shape no landmark or caliper
 //!   reaches (a normal-offset field predicted from the caliper dimensions).
 
 pub mod correspondence;
+pub mod distal_frame;
 pub mod pipeline;
 pub mod posture_fit;
 pub mod section_centre;

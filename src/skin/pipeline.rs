@@ -24,6 +24,7 @@ use super::correspondence::{
     fit_landmarks_with_points, DistanceConstraint, FitParams, FitResult, LandmarkConstraint,
     PointConstraint,
 };
+use super::distal_frame::distal_frames_by_homology;
 use super::posture_fit::{fit_posture, PostureFit, PostureTargets, SkinnedMarker};
 use super::section_centre::centre_on_cross_section;
 use super::shape_prior::{
@@ -443,10 +444,22 @@ pub fn fit_skin(
     // The joints are those a user measures with: the link model after section 3.6 (its 1-DOF
     // centres on the skin's cross-section), which moves with the skin.
     let edge_pairs = super::section_centre::edge_pairs(template)?;
-    let measure_skeleton = link_model.unwrap_or(&posed_skeleton);
-    // Section 3.6 on a fitted skin: the link model with its hinges' centres on the skin's
-    // cross-sections (the section's point one cue of a hinge's level among others), and each
-    // hinge's shift along its axis onto the section.
+    // The distal frames follow the skin: the template's distal z carried onto the first fitted
+    // skin by homology, in place of the direction toward the nail marker, and then kept through
+    // the rounds (re-aimed on each round's skin, the DIP sections chase the fingertips the rounds
+    // move, and landmarks were pulled 5-8 mm off their markers). From the posed template, whose
+    // distal frames stay on the middle phalanx (a posed skeleton keeps a joint's frame on its
+    // parent link): the posture fit's DIP flexion comes from the line of the DIP and nail
+    // markers, whose tilt to the bone differs between hands (20-30° on the procedural body),
+    // and carrying it placed the procedural fingertips farther off (README, "Tracking").
+    let aimed = distal_frames_by_homology(
+        link_model.unwrap_or(&posed_skeleton),
+        &posed_skeleton,
+        &posed,
+        &high,
+        &owners,
+    );
+    let measure_skeleton = &aimed;
     let section_3_6 = |high: &TriMesh| -> (Option<LinkModel>, Skeleton, BTreeMap<String, f64>) {
         let (centred, shifts) = centre_on_cross_section(measure_skeleton, high, &edge_pairs);
         match full_link_model {

@@ -1225,7 +1225,8 @@ mod tests {
     }
 
     /// The truth's fingertips are the true skeleton's forward kinematics: per digit, the point
-    /// of the rest DIP (IP) axis level with the farthest skin vertex the template's weights give
+    /// of the rest distal phalanx (from the DIP centre toward the skeleton's tip, normal to the
+    /// hinge axis) level with the farthest skin vertex the template's weights give
     /// the distal link, moved by that link's true transform (from the trial's forearm motion
     /// and angles); it keeps its rest distance from the truth's DIP centre in every frame.
     #[test]
@@ -1239,7 +1240,9 @@ mod tests {
         for f in Finger::ALL {
             let dip = f.joints()[2];
             let l = f.links()[2];
-            let (c, z) = (sk.centre(dip), sk.joint(dip).z());
+            let (c, x) = (sk.centre(dip), sk.joint(dip).x());
+            let bone = sk.tips[f as usize] - c;
+            let z = (bone - x * bone.dot(&x)).normalize();
             let reach = s
                 .true_skin
                 .vertices

@@ -15,7 +15,8 @@
 //!
 //! The fingertip is defined as the model defines it ([`tips_from_skin`]): the point of the
 //! distal joint's long axis level with the farthest skin vertex of the distal link, carried by
-//! the distal link. The true skeletons' own tips differ between the bodies (the template's at
+//! the distal link; the long axis is the distal phalanx in the reference posture (toward the
+//! true skeleton's own tip), not the parent-side frame a posed skeleton keeps. The true skeletons' own tips differ between the bodies (the template's at
 //! the skin's end, the procedural body's at the distal bone's end inside the pulp), so one
 //! definition on the skin keeps the tip error a measure of the model, not of definitions.
 
@@ -29,7 +30,7 @@ use crate::grasp::parts::clean_part;
 use crate::pose::hand::tips_from_skin;
 use crate::pose::IndividualHand;
 use crate::skeleton::forward_kinematics::{link_transforms, posed_tips};
-use crate::skeleton::{Pose, Skeleton};
+use crate::skeleton::{frame_from_axis, frame_from_long_axis, Pose, Skeleton};
 use crate::template::LinkWeights;
 use crate::track::{replay_frames, ContactReplay, PosedFrame, ReplayOptions};
 use nalgebra::Isometry3;
@@ -44,6 +45,23 @@ pub fn true_skinned_hand(
     weights: LinkWeights,
 ) -> Result<SkinnedHand> {
     let mut sk = skeleton.clone();
+    // A skeleton posed into the reference posture keeps each joint's frame on its parent link,
+    // so a distal joint flexed there has its z off the distal phalanx; the skeleton's own tip,
+    // carried by the distal link, gives the phalanx. Only z turns about the hinge axis, so the
+    // link transforms stay the same.
+    for f in Finger::ALL {
+        let j = f.joints()[2];
+        let jf = sk.joint(j);
+        let long = sk.tips[f as usize] - jf.centre;
+        let frame = if j.dof() == 1 {
+            frame_from_axis(&jf.x(), &long)
+        } else {
+            frame_from_long_axis(&long, &jf.y())
+        };
+        if let Ok(frame) = frame {
+            sk.joints[j.index()].frame = frame;
+        }
+    }
     sk.tips = tips_from_skin(&sk, skin, &weights);
     SkinnedHand::new(IndividualHand::from_parts(side, skin.clone(), sk, weights)?)
 }
@@ -103,4 +121,52 @@ pub fn add_skin_truth(hand: &SkinnedHand, task: &GraspTask, trial: &mut GraspTri
     trial.truth.tips = tips;
     trial.truth.contacts = Some(replay.records());
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::rng::Rng;
+    use crate::synth::procedural::procedural_body;
+
+    fn angle_deg(a: &crate::geometry::Vec3, b: &crate::geometry::Vec3) -> f64 {
+        a.normalize()
+            .dot(&b.normalize())
+            .clamp(-1.0, 1.0)
+            .acos()
+            .to_degrees()
+    }
+
+    /// A procedural hand whose reference posture flexes every DIP (IP) by 25°: its skeleton
+    /// keeps the distal frames on the middle phalanges, yet the true fingertip lies on the
+    /// distal phalanx, the line from the DIP centre toward the skeleton's own tip.
+    #[test]
+    fn a_true_tip_lies_along_the_distal_phalanx_of_a_flexed_reference_posture() {
+        let mut posture = Pose::zero();
+        for f in Finger::ALL {
+            posture = posture.with_deg(f.joints()[2], [25.0, 0.0, 0.0]);
+        }
+        let hand = procedural_body(Side::Right, &Rng::new(11), posture).unwrap();
+        let sk = &hand.skeleton;
+        let w =
+            crate::pose::bone_heat_weights(&hand.skin, sk, &crate::pose::HeatOptions::default())
+                .unwrap();
+        let skinned = true_skinned_hand(Side::Right, &hand.skin, sk, w).unwrap();
+        for f in Finger::ALL {
+            let j = f.joints()[2];
+            let (c, x) = (sk.centre(j), sk.joint(j).x());
+            let bone = sk.tips[f as usize] - c;
+            let bone = bone - x * bone.dot(&x);
+            // The posture is real: the parent-side z is well off the phalanx.
+            assert!(angle_deg(&sk.joint(j).z(), &bone) > 15.0, "{f:?}");
+            let tip = skinned.hand.skeleton.tips[f as usize] - c;
+            assert!(
+                angle_deg(&tip, &bone) < 1e-4,
+                "{f:?}: {}",
+                angle_deg(&tip, &bone)
+            );
+            // Level with the skin's end: beyond the bone's end inside the pulp.
+            assert!(tip.norm() > bone.norm(), "{f:?}");
+        }
+    }
 }
