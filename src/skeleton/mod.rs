@@ -77,6 +77,25 @@ impl Skeleton {
         self.joints[j.index()].centre
     }
 
+    /// Turn joint `j`'s frame so that its z points along `long`: a hinge keeps its axis (x) and
+    /// only turns about it; a joint of more freedom takes `dorsal` for y. Returns false, with the
+    /// frame left as it was, when `long` is degenerate (zero, or along the hinge axis).
+    pub fn aim_long_axis(&mut self, j: Joint, long: &Vec3, dorsal: &Vec3) -> bool {
+        let jf = self.joint(j);
+        let frame = if j.dof() == 1 {
+            frame_from_axis(&jf.x(), long)
+        } else {
+            frame_from_long_axis(long, dorsal)
+        };
+        match frame {
+            Ok(frame) => {
+                self.joints[j.index()].frame = frame;
+                true
+            }
+            Err(_) => false,
+        }
+    }
+
     /// The point at the distal end of `j`'s child link: the next joint of the digit, or the tip.
     /// For the wrist: the middle finger's MCP (the palm's long axis, as in the WebXR convention).
     pub fn distal_end(&self, j: Joint) -> Point {

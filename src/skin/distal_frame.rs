@@ -16,7 +16,7 @@
 
 use crate::anatomy::{Finger, Joint};
 use crate::geometry::{absolute_orientation, Point, TriMesh};
-use crate::skeleton::{frame_from_axis, frame_from_long_axis, Skeleton};
+use crate::skeleton::Skeleton;
 
 /// Re-aim the last joint of every digit of `model` (T_IP, X_DIP) along the distal phalanx of
 /// the fitted `skin`. `template` and `template_skin` are the template's skeleton and skin in
@@ -48,16 +48,8 @@ pub fn distal_frames_by_homology(
         let Ok(reg) = absolute_orientation(&src, &dst, None, false) else {
             continue;
         };
-        let long = reg.rotation * template.joint(j).z();
-        let jf = model.joint(j);
-        let frame = if j.dof() == 1 {
-            frame_from_axis(&jf.x(), &long)
-        } else {
-            frame_from_long_axis(&long, &(reg.rotation * template.joint(j).y()))
-        };
-        if let Ok(frame) = frame {
-            out.joints[j.index()].frame = frame;
-        }
+        let t = template.joint(j);
+        out.aim_long_axis(j, &(reg.rotation * t.z()), &(reg.rotation * t.y()));
     }
     out
 }
@@ -71,14 +63,6 @@ mod tests {
     use crate::skeleton::Pose;
     use crate::template::{dominant_links, load_template};
     use nalgebra::{Isometry3, Rotation3, Translation3, UnitQuaternion};
-
-    fn angle(a: &crate::geometry::Vec3, b: &crate::geometry::Vec3) -> f64 {
-        a.normalize()
-            .dot(&b.normalize())
-            .clamp(-1.0, 1.0)
-            .acos()
-            .to_degrees()
-    }
 
     /// The template posed with its DIPs flexed and its whole hand moved, taken as a subject's
     /// reference posture: its distal phalanges point where the distal links' transforms carry
@@ -111,7 +95,8 @@ mod tests {
             let x = model.joint(j).x();
             let want = tf[j.child_link().index()].rotation * t.skeleton.joint(j).z();
             let swing = Rotation3::from_axis_angle(&nalgebra::Unit::new_normalize(x), -0.87);
-            model.joints[j.index()].frame = frame_from_axis(&x, &(swing * want)).unwrap();
+            let dorsal = model.joint(j).y();
+            assert!(model.aim_long_axis(j, &(swing * want), &dorsal));
         }
         let owner = dominant_links(&t.weights);
         let out = distal_frames_by_homology(&model, &t.skeleton, &t.mesh, &skin, &owner);
@@ -119,9 +104,9 @@ mod tests {
             let j = f.joints()[2];
             let (o, m) = (out.joint(j), model.joint(j));
             let want = tf[j.child_link().index()].rotation * t.skeleton.joint(j).z();
-            assert!(angle(&m.z(), &want) > 45.0);
+            assert!(m.z().angle(&want).to_degrees() > 45.0);
             // LBS bends the skin near the DIP, so the region turns a little less than its bone.
-            let err = angle(&o.z(), &want);
+            let err = o.z().angle(&want).to_degrees();
             assert!(err < 2.0, "{j}: {err:.2}°");
             assert!((o.x() - m.x()).norm() < 1e-12, "{j}: the axis moved");
             assert!(o.z().dot(&o.x()).abs() < 1e-12);

@@ -30,7 +30,7 @@ use crate::grasp::parts::clean_part;
 use crate::pose::hand::tips_from_skin;
 use crate::pose::IndividualHand;
 use crate::skeleton::forward_kinematics::{link_transforms, posed_tips};
-use crate::skeleton::{frame_from_axis, frame_from_long_axis, Pose, Skeleton};
+use crate::skeleton::{Pose, Skeleton};
 use crate::template::LinkWeights;
 use crate::track::{replay_frames, ContactReplay, PosedFrame, ReplayOptions};
 use nalgebra::Isometry3;
@@ -51,16 +51,8 @@ pub fn true_skinned_hand(
     // link transforms stay the same.
     for f in Finger::ALL {
         let j = f.joints()[2];
-        let jf = sk.joint(j);
-        let long = sk.tips[f as usize] - jf.centre;
-        let frame = if j.dof() == 1 {
-            frame_from_axis(&jf.x(), &long)
-        } else {
-            frame_from_long_axis(&long, &jf.y())
-        };
-        if let Ok(frame) = frame {
-            sk.joints[j.index()].frame = frame;
-        }
+        let (long, dorsal) = (sk.tips[f as usize] - sk.centre(j), sk.joint(j).y());
+        sk.aim_long_axis(j, &long, &dorsal);
     }
     sk.tips = tips_from_skin(&sk, skin, &weights);
     SkinnedHand::new(IndividualHand::from_parts(side, skin.clone(), sk, weights)?)
@@ -129,14 +121,6 @@ mod tests {
     use crate::rng::Rng;
     use crate::synth::procedural::procedural_body;
 
-    fn angle_deg(a: &crate::geometry::Vec3, b: &crate::geometry::Vec3) -> f64 {
-        a.normalize()
-            .dot(&b.normalize())
-            .clamp(-1.0, 1.0)
-            .acos()
-            .to_degrees()
-    }
-
     /// A procedural hand whose reference posture flexes every DIP (IP) by 25°: its skeleton
     /// keeps the distal frames on the middle phalanges, yet the true fingertip lies on the
     /// distal phalanx, the line from the DIP centre toward the skeleton's own tip.
@@ -158,12 +142,12 @@ mod tests {
             let bone = sk.tips[f as usize] - c;
             let bone = bone - x * bone.dot(&x);
             // The posture is real: the parent-side z is well off the phalanx.
-            assert!(angle_deg(&sk.joint(j).z(), &bone) > 15.0, "{f:?}");
+            assert!(sk.joint(j).z().angle(&bone).to_degrees() > 15.0, "{f:?}");
             let tip = skinned.hand.skeleton.tips[f as usize] - c;
             assert!(
-                angle_deg(&tip, &bone) < 1e-4,
+                tip.angle(&bone).to_degrees() < 1e-4,
                 "{f:?}: {}",
-                angle_deg(&tip, &bone)
+                tip.angle(&bone).to_degrees()
             );
             // Level with the skin's end: beyond the bone's end inside the pulp.
             assert!(tip.norm() > bone.norm(), "{f:?}");
