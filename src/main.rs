@@ -185,6 +185,11 @@ enum Command {
         /// A scene file whose part the subject handles ([part.markers] to follow it).
         #[arg(long)]
         scene: Option<PathBuf>,
+        /// Solve again the frames whose skin reaches more than MM into the scene's part, so
+        /// that it does not where the markers allow (off by default: it costs joint accuracy
+        /// where the reconstructed skin is too thick; see the README's Tracking section).
+        #[arg(long, value_name = "MM", requires = "scene")]
+        keep_out: Option<f64>,
         /// Output folder.
         #[arg(long)]
         out: PathBuf,
@@ -320,8 +325,17 @@ fn main() -> ExitCode {
             model,
             motion,
             scene,
+            keep_out,
             out,
-        } => cli::track(&subject_dir, &model, &motion, scene.as_deref(), &out).map(|_| ()),
+        } => cli::track(
+            &subject_dir,
+            &model,
+            &motion,
+            scene.as_deref(),
+            keep_out,
+            &out,
+        )
+        .map(|_| ()),
         Command::Batch {
             subjects_dir,
             out,

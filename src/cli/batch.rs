@@ -643,7 +643,7 @@ fn track_motions(
                 let result = if plain_folder_name(motion) {
                     let mout = model.join(MOTIONS_DIR).join(motion);
                     std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
-                        track_job(dir, &model, motion, scene, &mout, Voice::Nested)
+                        track_job(dir, &model, motion, scene, None, &mout, Voice::Nested)
                     }))
                     .unwrap_or_else(|_| {
                         Err(Error::invalid(format!(

@@ -61,6 +61,7 @@ pub fn demo(out: &Path) -> Result<()> {
         &model_dir,
         motion,
         Some(&scene),
+        None,
         &track_dir,
         Voice::Nested,
     )?;

@@ -15,8 +15,8 @@ use crate::io::output_paths::{check_output_dir, Inputs};
 use crate::io::Units;
 use crate::mocap::subject::{Subject, TrialKind};
 use crate::track::{
-    load_link_model, replay_contacts, track_trial, ContactReplay, IkOptions, PartSetup,
-    ReplayOptions, Tracked,
+    keep_out_of_part, load_link_model, observations, replay_contacts, track_trial, ContactReplay,
+    IkOptions, KeepOutOptions, PartSetup, ReplayOptions, Solver, Tracked,
 };
 use crate::validate::motion_contact_map::{contact_map_picture, contact_map_scene, ContactMap};
 use crate::validate::motion_plots::{angles_chart, contact_area_chart};
@@ -55,7 +55,10 @@ pub struct TrackSummary {
 /// a coloured GLB, the charts of the joint angles and the contact area against time and
 /// `out/report.html` (see [`crate::validate::motion_report`]). Without `skin.obj` in the model
 /// folder the GLBs and the contact map are not written (a warning names the file); without a
-/// scene there is no contact map.
+/// scene there is no contact map. With `keep_out` (an allowance, mm) and a scene, the frames
+/// whose skin reaches deeper than the allowance into the part are solved again to keep it out
+/// where the markers allow ([`crate::track::keep_out`]); a warning names the frames where they
+/// do not.
 ///
 /// Errors, one line naming the file and the field or marker: no `subject.toml`, no such
 /// motion in `[motions]`, no `link_model.json` in the model folder or one of the other hand, a
@@ -65,9 +68,18 @@ pub fn track(
     model_dir: &Path,
     motion: &str,
     scene: Option<&Path>,
+    keep_out: Option<f64>,
     out: &Path,
 ) -> Result<TrackSummary> {
-    track_job(subject_dir, model_dir, motion, scene, out, Voice::Command)
+    track_job(
+        subject_dir,
+        model_dir,
+        motion,
+        scene,
+        keep_out,
+        out,
+        Voice::Command,
+    )
 }
 
 /// [`track`], speaking with `voice`.
@@ -76,9 +88,15 @@ pub(crate) fn track_job(
     model_dir: &Path,
     motion: &str,
     scene: Option<&Path>,
+    keep_out: Option<f64>,
     out: &Path,
     voice: Voice,
 ) -> Result<TrackSummary> {
+    if let Some(a) = keep_out.filter(|a| !(a.is_finite() && *a >= 0.0)) {
+        return Err(Error::invalid(format!(
+            "--keep-out {a}: the allowance must be a distance of 0 mm or more"
+        )));
+    }
     let subject = Subject::load(subject_dir)?;
     let mut inputs = Inputs::files(
         std::iter::once(subject.toml_path())
@@ -152,7 +170,7 @@ pub(crate) fn track_job(
             Ok((hand, part_shape))
         },
     );
-    let tracked = tracked?;
+    let mut tracked = tracked?;
     let (hand, part_shape) = loaded?;
     lap("inverse kinematics, reading the skin and the part");
     let mut warnings = tracked.warnings.clone();
@@ -175,6 +193,34 @@ pub(crate) fn track_job(
         warnings.extend(w);
         p
     });
+    if let (Some(h), Some(p), Some(allowance_mm)) = (&hand, &part_shape, keep_out) {
+        let att = tracked.attachment.clone();
+        let solver = Solver::new(&kin, &att, IkOptions::default());
+        let obs = observations(&att, &trial);
+        let opts = KeepOutOptions {
+            allowance_mm,
+            ..KeepOutOptions::default()
+        };
+        let k = keep_out_of_part(&kin, &solver, &obs, &mut tracked, h, p, &opts);
+        log::debug!(
+            "track: {} frames kept out of the part (deepest skin point {:.2} -> {:.2} mm)",
+            k.frames.len(),
+            k.deepest_before_mm,
+            k.deepest_after_mm
+        );
+        if !k.still_inside.is_empty() {
+            warnings.push(format!(
+                "{}: the skin stays more than {} mm inside the part in {} frames, where the \
+                 markers hold the hand there (up to {:.1} mm): frames {}",
+                trial.source.display(),
+                opts.allowance_mm + 1.0,
+                k.still_inside.len(),
+                k.deepest_after_mm,
+                crate::track::ranges(&k.still_inside)
+            ));
+        }
+        lap("keeping the skin out of the part");
+    }
     let replay = match (&hand, &part_shape, &scene) {
         (Some(h), Some(p), Some(s)) => Some(contacts(
             h,

@@ -11,17 +11,19 @@
 //! The closure is found, not scripted: each digit flexes in stages (a finger: the MCP with the
 //! PIP and DIP following, then the PIP with the DIP coupled at two thirds of it, then the DIP
 //! alone; the thumb: the CMC opposing with the MCP and IP following, then the MCP and IP) until
-//! one of its moving links comes within 0.5 mm of the part's surface, each link taken as a
-//! capsule about its bone of half the digit's measured-by-definition thickness, against the
-//! part's exact signed distance function. That is a model of the finger's skin, not the skin
-//! itself: the clearances say so; the true skin's own contacts and the fingertips are added
-//! to the truth by [`super::true_contacts`].
+//! one of its moving links is pressed 1 mm into the part: the true skin of the link (its
+//! vertices by dominant weight, posed by linear blend skinning) against the part's exact signed
+//! distance function. The palm comes in until its skin (thenar and hypothenar included) is
+//! pressed as far. So the true hand touches the part with its soft tissue pressed about a
+//! millimetre (a rigid skin stands for it) and reaches no deeper; the true skin's contacts and
+//! the fingertips are added to the truth by [`super::true_contacts`].
 
 use super::capture::{MarkerDef, StaDriver};
 use super::ErrorModel;
 use crate::anatomy::{Finger, Joint, Link, Side};
 use crate::error::{Error, Result};
 use crate::geometry::{Point, TriMesh, Vec3};
+use crate::grasp::hand::{PosableHand, SkinnedHand};
 use crate::grasp::parts::Part;
 use crate::grasp::scene::{parse_scene, Approach, Scene};
 use crate::mocap::trajectories::Trajectories;
@@ -71,8 +73,10 @@ pub const PHASES: [(&str, f64, f64); 5] = [
 
 /// How high the part is lifted, mm.
 const LIFT_MM: f64 = 80.0;
-/// Clearance at which a link counts as touching the part, mm.
-const TOUCH_MM: f64 = 0.5;
+/// A link's skin (and the palm's) stops closing when pressed this far into the part, mm
+/// (negative: inside): the soft tissue of a holding hand gives about a millimetre, as the grasp
+/// stage's squeeze assumes, and a rigid skin pressed that far stands for it.
+const STOP_MM: f64 = -1.0;
 
 /// The errors of a grasp trial beyond those of the calibration trials' model: occlusion grows as
 /// the hand closes (the digits hide each other and the part hides the palmar side), and a few
@@ -171,9 +175,9 @@ pub struct MotionTruth {
     pub phases: Vec<Phase>,
     /// The closed grasp's angles relative to the reference posture, degrees, by joint.
     pub grasp_deg: BTreeMap<String, [f64; 3]>,
-    /// Per link of the digits: the capsule clearance to the part in the held grasp, mm (the
-    /// capsule about the bone, radius half the digit's thickness; <= 0.5 touches). A model of
-    /// the skin, not true contact areas.
+    /// Per link of the digits: the smallest signed distance of its true skin from the part in
+    /// the held grasp, mm (negative inside; a link that closed on the part is pressed about
+    /// 1 mm in).
     pub grasp_clearance_mm: BTreeMap<String, f64>,
     /// Which link each marker rides (the part markers: `PART`).
     pub marker_links: BTreeMap<String, String>,
@@ -310,18 +314,18 @@ fn lifted(u: f64) -> f64 {
     ramp(u, 0.50, 0.62) * (1.0 - ramp(u, 0.68, 0.78))
 }
 
-/// The capsules of the digits and the part, for the closing.
+/// The true skin of the digits and the part, for the closing.
 struct Closer<'a> {
     sk: &'a Skeleton,
+    hand: &'a SkinnedHand,
     root: Isometry3<f64>,
     part_inv: Isometry3<f64>,
     part: Part,
-    /// Capsule radius per link, mm.
-    radius: [f64; 17],
 }
 
 impl Closer<'_> {
-    /// The smallest clearance between the capsules of `links` and the part at `angles` (degrees).
+    /// The smallest signed distance from the part of the true skin of `links` (each link's
+    /// vertices by their dominant weight, posed by linear blend skinning) at `angles` (degrees).
     fn clearance(&self, angles: &[[f64; 3]; 16], links: &[Link]) -> f64 {
         let mut pose = Pose::zero();
         for (j, a) in Joint::ALL.iter().zip(angles) {
@@ -329,24 +333,21 @@ impl Closer<'_> {
         }
         pose.root = self.root;
         let tf = link_transforms(self.sk, &pose);
+        let mut posed = Vec::new();
         links
             .iter()
             .map(|&l| {
-                let j = l.joint().expect("digit links have a joint");
-                let t = tf[l.index()];
-                let (a, b) = (t * self.sk.centre(j), t * self.sk.distal_end(j));
-                (0..=8)
-                    .map(|k| {
-                        let p = a + (b - a) * (k as f64 / 8.0);
-                        self.part.sdf(&(self.part_inv * p)) - self.radius[l.index()]
-                    })
+                self.hand.pose_link(l.index(), &tf, &mut posed);
+                posed
+                    .iter()
+                    .map(|p| self.part.sdf(&(self.part_inv * p)))
                     .fold(f64::INFINITY, f64::min)
             })
             .fold(f64::INFINITY, f64::min)
     }
 
     /// Step `angles` by `step` (which returns false at the stage's limit) until one of `links`
-    /// comes within [`TOUCH_MM`]; the last posture before that is kept. Returns whether a link
+    /// comes within [`STOP_MM`]; the last posture before that is kept. Returns whether a link
     /// touched.
     fn flex_until(
         &self,
@@ -354,7 +355,7 @@ impl Closer<'_> {
         links: &[Link],
         mut step: impl FnMut(&mut [[f64; 3]; 16], usize) -> bool,
     ) -> bool {
-        if self.clearance(angles, links) <= TOUCH_MM {
+        if self.clearance(angles, links) <= STOP_MM {
             return true;
         }
         for k in 1..2000 {
@@ -362,7 +363,7 @@ impl Closer<'_> {
             if !step(&mut next, k) {
                 return false;
             }
-            if self.clearance(&next, links) <= TOUCH_MM {
+            if self.clearance(&next, links) <= STOP_MM {
                 return true;
             }
             *angles = next;
@@ -370,9 +371,9 @@ impl Closer<'_> {
         false
     }
 
-    /// The power grasp's angles relative to the reference posture, degrees.
-    fn close(&self) -> [[f64; 3]; 16] {
-        let mut a = [[0.0; 3]; 16];
+    /// The fingers of the power grasp closed from `a` (angles relative to the reference
+    /// posture, degrees; the thumb's are kept).
+    fn close_fingers(&self, mut a: [[f64; 3]; 16]) -> [[f64; 3]; 16] {
         for f in &Finger::ALL[1..] {
             let [mcp, pip, dip] = f.joints().map(|j| j.index());
             let [prox, mid, dist] = f.links();
@@ -382,7 +383,7 @@ impl Closer<'_> {
                 let mut d = x[pip][0] * 2.0 / 3.0;
                 loop {
                     x[dip][0] = d;
-                    if self.clearance(x, &[dist]) > TOUCH_MM {
+                    if self.clearance(x, &[dist]) > STOP_MM {
                         return true;
                     }
                     d -= 2.0;
@@ -391,11 +392,26 @@ impl Closer<'_> {
                     }
                 }
             };
-            // The MCP and PIP together, 0.5° steps, until the proximal or middle link touches.
-            self.flex_until(&mut a, &[prox, mid], |x, k| {
-                x[mcp][0] = (0.5 * k as f64).min(80.0);
-                x[pip][0] = 0.5 * k as f64;
-                x[pip][0] <= 100.0 && fit_dip(x)
+            // The PIP follows the MCP at half its flexion, less where the middle link (or the
+            // distal one, fitted as above) would reach into the part, down to 10° of extension.
+            let fit_pip = |x: &mut [[f64; 3]; 16]| -> bool {
+                let mut p = x[mcp][0] / 2.0;
+                loop {
+                    x[pip][0] = p;
+                    if fit_dip(x) && self.clearance(x, &[mid]) > STOP_MM {
+                        return true;
+                    }
+                    p -= 2.0;
+                    if p < -10.0 {
+                        return false;
+                    }
+                }
+            };
+            // The MCP, 0.5° steps, until the proximal link touches: the phalanges distal to it
+            // wrap the part without stopping it, as in a cylindrical grasp.
+            self.flex_until(&mut a, &[prox], |x, k| {
+                x[mcp][0] = 0.5 * k as f64;
+                x[mcp][0] <= 90.0 && fit_pip(x)
             });
             // Then the PIP until the middle link touches, then the DIP alone.
             let p0 = a[pip][0];
@@ -409,12 +425,19 @@ impl Closer<'_> {
                 x[dip][0] <= 80.0
             });
         }
+        a
+    }
+
+    /// The thumb of the power grasp, the fingers at their reference posture: angles relative
+    /// to it, degrees.
+    fn close_thumb(&self) -> [[f64; 3]; 16] {
+        let mut a = [[0.0; 3]; 16];
         // The thumb: of the postures of a grid (CMC flexion -20..40°, palmar abduction
         // -20..50°, MCP 0..50° with the IP at 1.2 times it), those clear of the part whose
         // distal link touches it, the one nearest the opposition (CMC 20°, 40°); if none touches,
         // the clear one whose distal link comes nearest.
         let [cmc, mcp, ip] = Finger::Thumb.joints().map(|j| j.index());
-        let [_, prox, dist] = Finger::Thumb.links();
+        let [meta, prox, dist] = Finger::Thumb.links();
         let mut best: Option<(bool, f64, [[f64; 3]; 16])> = None;
         for fl in (0..=12).map(|k| -20.0 + 5.0 * k as f64) {
             for ab in (0..=14).map(|k| -20.0 + 5.0 * k as f64) {
@@ -423,11 +446,14 @@ impl Closer<'_> {
                     x[cmc] = [fl, ab, 0.0];
                     x[mcp][0] = m;
                     x[ip][0] = (1.2 * m).min(70.0);
-                    let (cp, cd) = (self.clearance(&x, &[prox]), self.clearance(&x, &[dist]));
-                    if cp < TOUCH_MM || cd < TOUCH_MM {
+                    let (cp, cd) = (
+                        self.clearance(&x, &[meta, prox]),
+                        self.clearance(&x, &[dist]),
+                    );
+                    if cp < STOP_MM || cd < STOP_MM {
                         continue;
                     }
-                    let touches = cd <= TOUCH_MM + 1.5;
+                    let touches = cd <= STOP_MM + 1.5;
                     let score = if touches {
                         (fl - 20.0).hypot(ab - 40.0) + 0.1 * m
                     } else {
@@ -486,10 +512,9 @@ fn approach_for(scene: &Scene, side: Side) -> Result<Isometry3<f64>> {
 pub struct GraspInputs<'a> {
     /// The true skeleton in the reference posture, lab frame.
     pub skeleton: &'a Skeleton,
-    /// The true skin in the reference posture, lab frame.
-    pub skin: &'a TriMesh,
-    /// Error-free dimensions by name (for the digits' capsule radii).
-    pub dimensions: &'a BTreeMap<String, f64>,
+    /// The true skin in the reference posture, lab frame, bound to `skeleton` for posing
+    /// ([`super::true_contacts::true_skinned_hand`]).
+    pub hand: &'a SkinnedHand,
     /// The skin, palm and forearm markers, placed as for the static trial.
     pub markers: Vec<MarkerDef>,
 }
@@ -522,99 +547,68 @@ pub fn simulate_grasp(
     let sk = inp.skeleton;
     let part_pose = scene.part_pose;
     let approach = approach_for(&scene, sk.side)?;
-    let g = grasp_frame(sk, inp.skin);
+    let g = grasp_frame(sk, inp.hand.rest_mesh());
     // The hand's rigid motion that puts its grasp frame at the scene's approach.
     let at_approach = part_pose * approach * g.inverse();
-    // Bring the palm in along its normal until its skin is 1 mm off the part (the thenar or a
-    // flexed digit may stop it first), from 15 mm back.
+    // Bring the palm in along its normal, from 15 mm back, until its skin is pressed as far
+    // into the part as a closing link's: first the palm's skin (every vertex the palm and the
+    // thumb's metacarpal carry, by their dominant weights), the thumb at its reference
+    // posture; then, the thumb closed there, again with the whole thumb, so that the palm, the
+    // thenar or the thumb meets the part. The fingers close last.
     let palmar = at_approach.rotation * g.rotation * Vec3::z();
-    // The palm's skin: the vertices between the wrist and the MCPs, across the MCPs' span (with
-    // the thenar; without the thumb and the fingers, which the closing places).
-    let gi = g.inverse();
-    let (xi, xl) = (
-        (gi * sk.centre(Joint::IMcp)).x,
-        (gi * sk.centre(Joint::LMcp)).x,
-    );
-    let (y0, y1) = (
-        (gi * sk.centre(Joint::Wrist)).y,
-        (gi * sk.centre(Joint::MMcp)).y,
-    );
-    let span = |v: &Point| {
-        let q = gi * v;
-        q.x >= xi.min(xl) - 5.0 && q.x <= xi.max(xl) + 5.0 && q.y >= y0 && q.y <= y1
-    };
-    let skin: Vec<Point> = inp
-        .skin
-        .vertices
-        .iter()
-        .filter(|v| span(v))
-        .map(|v| at_approach * v)
-        .collect();
     let inv = part_pose.inverse();
-    let min_sdf = |d: f64| {
-        skin.iter()
-            .map(|v| task.part.sdf(&(inv * (v + palmar * d))))
-            .fold(f64::INFINITY, f64::min)
-    };
-    let mut d = -15.0;
-    while min_sdf(d) < 1.0 {
-        d -= 5.0;
-        if d < -100.0 {
-            return Err(Error::invalid(format!(
-                "{}: the approach puts the hand inside the part",
-                task.name
-            )));
+    let palm_and_thumb = [Link::Palm, Link::TMeta, Link::TProx, Link::TDist];
+    let place = |angles: &[[f64; 3]; 16], links: &[Link]| -> Result<f64> {
+        let mut pose = Pose::zero();
+        for (j, a) in Joint::ALL.iter().zip(angles) {
+            pose = pose.with_deg(*j, *a);
         }
-    }
-    while d < 60.0 && min_sdf(d + 0.5) >= 1.0 {
-        d += 0.5;
-    }
-    let grasp_root = Translation3::from(palmar * d) * at_approach;
-    if log::log_enabled!(log::Level::Debug) {
-        let worst = skin
-            .iter()
-            .min_by(|a, b| {
-                let f = |v: &Point| task.part.sdf(&(inv * (v + palmar * d)));
-                f(a).total_cmp(&f(b))
-            })
-            .map(|v| (at_approach * g).inverse() * v);
-        log::debug!(
-            "{}: palm brought {d:.1} mm in; {} palm vertices, nearest {:?} (grasp frame)",
-            task.name,
-            skin.len(),
-            worst
-        );
-    }
-
-    // Capsule radii: half the true thickness of the digit at its PIP (IP) and DIP.
-    let dim = |k: String| -> Result<f64> {
-        inp.dimensions
-            .get(&k)
-            .copied()
-            .ok_or_else(|| Error::invalid(format!("the true hand has no dimension {k}")))
-    };
-    let mut radius = [0.0; 17];
-    for f in Finger::ALL {
-        let n = f.number();
-        let prox = dim(format!("finger{n}_thickness_proximal"))? / 2.0;
-        let dist = if f == Finger::Thumb {
-            prox
-        } else {
-            dim(format!("finger{n}_thickness_distal"))? / 2.0
+        pose.root = at_approach;
+        let tf = link_transforms(sk, &pose);
+        let mut skin = Vec::new();
+        let mut posed = Vec::new();
+        for l in links {
+            inp.hand.pose_link(l.index(), &tf, &mut posed);
+            skin.extend_from_slice(&posed);
+        }
+        let min_sdf = |d: f64| {
+            skin.iter()
+                .map(|v| task.part.sdf(&(inv * (v + palmar * d))))
+                .fold(f64::INFINITY, f64::min)
         };
-        let [a, b, c] = f.links();
-        radius[a.index()] = prox;
-        radius[b.index()] = prox;
-        radius[c.index()] = dist;
-    }
-    let closer = Closer {
+        let mut d = -15.0;
+        while min_sdf(d) < STOP_MM {
+            d -= 5.0;
+            if d < -100.0 {
+                return Err(Error::invalid(format!(
+                    "{}: the approach puts the hand inside the part",
+                    task.name
+                )));
+            }
+        }
+        while d < 60.0 && min_sdf(d + 0.5) >= STOP_MM {
+            d += 0.5;
+        }
+        Ok(d)
+    };
+    let root_at = |d: f64| Translation3::from(palmar * d) * at_approach;
+    let closer_at = |d: f64| Closer {
         sk,
-        root: grasp_root,
+        hand: inp.hand,
+        root: root_at(d),
         part_inv: inv,
         part: task.part,
-        radius,
     };
-    let closed = closer.close();
+    let d0 = place(&[[0.0; 3]; 16], &palm_and_thumb[..2])?;
+    let thumb = closer_at(d0).close_thumb();
+    let d = place(&thumb, &palm_and_thumb)?;
+    let grasp_root = root_at(d);
+    let closer = closer_at(d);
+    let closed = closer.close_fingers(thumb);
+    log::debug!(
+        "{}: palm brought {d0:.1} mm in, then {d:.1} mm with the thumb closed",
+        task.name
+    );
     let digit_links: Vec<Link> = Finger::ALL
         .iter()
         .flat_map(|f| f.links())
@@ -946,12 +940,17 @@ mod tests {
                 );
             }
         }
-        // The fingers really close: the PIPs flex in the hold.
+        // The fingers really close: each flexes by more than 45° over its three joints in the
+        // hold (from a reference posture that may flex a joint already).
         let hold = &t.phases[2];
         assert_eq!(hold.name, "hold");
         for fi in &Finger::ALL[1..] {
-            let a = t.joints[fi.joints()[1].name()].angles_deg[hold.first][0];
-            assert!(a > 5.0, "{fi:?} PIP {a}");
+            let a: f64 = fi
+                .joints()
+                .iter()
+                .map(|j| t.joints[j.name()].angles_deg[hold.first][0])
+                .sum();
+            assert!(a > 45.0, "{fi:?} flexes {a}°");
         }
     }
 
@@ -1051,40 +1050,36 @@ mod tests {
         assert!((lifted_mm - LIFT_MM).abs() < 1e-6, "{lifted_mm}");
     }
 
-    /// In the hold the digits touch the part without reaching into it: every proximal and
-    /// middle bone, as a capsule of half the digit's true thickness between the truth's
-    /// centres, is clear of the part's surface but for a millimetre, and the middle phalanges
-    /// of at least three fingers lie within 3 mm of it.
+    /// In the hold the true skin touches the part with every phalanx of at least three fingers
+    /// and reaches no deeper into it than the closing presses it (1 mm, and the bottle's mesh
+    /// lies within 0.3 mm of its exact shape): the truth's contacts, which
+    /// [`truth_contacts_are_the_posed_true_skin_probed_against_the_part`] checks against a
+    /// vertex-by-vertex probe, are read per link.
     #[test]
     fn the_hand_holds_the_part_without_reaching_into_it() {
         for s in [clean(), typical()] {
             let t = &s.motions["grasp_bottle"].truth;
+            let records = t.contacts.as_ref().expect("contacts computed");
             let hold = &t.phases[2];
             for f in [hold.first, (hold.first + hold.last) / 2, hold.last] {
-                let inv = part_pose(t, f).inverse();
-                let mut near = 0;
-                for fi in &Finger::ALL[1..] {
-                    let n = fi.number();
-                    let r = s.truth.dimensions[&format!("finger{n}_thickness_proximal")] / 2.0;
-                    let [mcp, pip, dip] = fi.joints();
-                    let mut mid_clear = f64::INFINITY;
-                    for (a, b) in [(mcp, pip), (pip, dip)] {
-                        let (a, b) = (
-                            p(&t.joints[a.name()].centre[f]),
-                            p(&t.joints[b.name()].centre[f]),
-                        );
-                        for k in 0..=10 {
-                            let x = a + (b - a) * (k as f64 / 10.0);
-                            let c = Part::Bottle.sdf(&(inv * x)) - r;
-                            assert!(c > -1.0, "{fi:?} frame {f}: {c} mm into the part");
-                            if b == p(&t.joints[dip.name()].centre[f]) {
-                                mid_clear = mid_clear.min(c);
-                            }
-                        }
-                    }
-                    near += usize::from(mid_clear < 3.0);
+                let at = |l: Link| records.iter().find(|r| r.frame == f && r.link == l.name());
+                for r in records.iter().filter(|r| r.frame == f) {
+                    assert!(
+                        r.depth_mm < -STOP_MM + 0.3,
+                        "frame {f} {}: {}",
+                        r.link,
+                        r.depth_mm
+                    );
                 }
-                assert!(near >= 3, "frame {f}: {near} fingers near the part");
+                let wrapped = Finger::ALL[1..]
+                    .iter()
+                    .filter(|fi| {
+                        fi.links()
+                            .iter()
+                            .all(|&l| at(l).is_some_and(|r| r.area_mm2 > 0.0))
+                    })
+                    .count();
+                assert!(wrapped >= 3, "frame {f}: {wrapped} fingers wrap the part");
             }
         }
     }
@@ -1122,10 +1117,19 @@ mod tests {
         let tasks = &GRASP_TASKS[0];
         let err = Preset::Typical.error_model();
         let mut gerr = GraspErrors::from_model(&err);
+        let weights = crate::template::load_template(s.subject.hand)
+            .unwrap()
+            .weights;
+        let hand = crate::synth::true_contacts::true_skinned_hand(
+            s.subject.hand,
+            &s.true_skin,
+            &s.true_skeleton,
+            weights,
+        )
+        .unwrap();
         let inputs = || GraspInputs {
             skeleton: &s.true_skeleton,
-            skin: &s.true_skin,
-            dimensions: &s.truth.dimensions,
+            hand: &hand,
             markers: m.markers.clone(),
         };
         let rng = Rng::new(42).fork("motion-grasp_bottle");
@@ -1273,7 +1277,8 @@ mod tests {
     /// template's weights by the skeleton's own linear blend) and probed vertex
     /// by vertex against the bottle's mesh at its true pose: every vertex within 1 mm of the
     /// part or inside it counts its rest area for its dominant link. The mesh is the bottle:
-    /// its signed distance agrees with the exact one of the shape there. Nothing touches
+    /// its signed distance agrees with the exact one of the shape there (to half the 2 mm grid
+    /// the mesh is made on, which rounds the shape's edges). Nothing touches
     /// while the hand is 60 mm back in the reach, and the hold has contacts.
     #[test]
     fn truth_contacts_are_the_posed_true_skin_probed_against_the_part() {
@@ -1313,7 +1318,7 @@ mod tests {
                 if d <= 1.0 {
                     area[dom[i]] += areas[i];
                     depth[dom[i]] = depth[dom[i]].max(-d);
-                    assert!((Part::Bottle.sdf(&q) - d).abs() < 0.3, "vertex {i}");
+                    assert!((Part::Bottle.sdf(&q) - d).abs() < 1.0, "vertex {i}: {d}");
                 }
             }
             for l in Link::ALL {

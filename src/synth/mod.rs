@@ -684,8 +684,7 @@ pub fn simulate_with(opts: &SynthOptions, err: &ErrorModel) -> Result<SyntheticS
                 task,
                 grasp_motion::GraspInputs {
                     skeleton: &true_skeleton,
-                    skin: &true_skin,
-                    dimensions: &truth.dimensions,
+                    hand: &skinned,
                     markers: defs.clone(),
                 },
                 motion_s,

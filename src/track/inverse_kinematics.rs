@@ -260,6 +260,36 @@ impl<'a> Solver<'a> {
         out
     }
 
+    /// The solved frame `sol` of `obs` solved again from `start` with the plane terms `planes`
+    /// (weight `plane_weight`) added: the same markers (its inliers off held links), its held
+    /// joints fixed, its coupled joints tied to their changes from `sol`, and `sol`'s state
+    /// the temporal term's target. Returns the state and the markers' residuals; `None` when
+    /// `sol` is unsolved.
+    pub fn refine(
+        &self,
+        sol: &FrameSolution,
+        start: &HandState,
+        obs: &[Option<Point>],
+        planes: &[ContactPlane],
+        plane_weight: f64,
+    ) -> Option<(HandState, Vec<Option<f64>>)> {
+        let state = sol.state.as_ref()?;
+        let on_held = self.on_held(&sol.held);
+        let fit: Vec<bool> = (0..obs.len())
+            .map(|i| obs[i].is_some() && !sol.rejected.contains(&i) && !on_held[i])
+            .collect();
+        let con = Constraints {
+            held: &sol.held,
+            coupled: &sol.coupled,
+            anchor: Some(state),
+            planes,
+            plane_weight,
+        };
+        let (s, _) = self.solve(start.clone(), obs, &fit, &con, Some(state));
+        let res = self.residuals(&self.kin.evaluate(&s), obs);
+        Some((s, res))
+    }
+
     /// Solve one frame from `prior` (none: a fresh start).
     fn solve_frame(&self, obs: &[Option<Point>], prior: Option<&Prior>) -> FrameSolution {
         let n = obs.len();
@@ -323,6 +353,8 @@ impl<'a> Solver<'a> {
                 held: &held,
                 coupled: &coupled,
                 anchor: Some(&hold_from),
+                planes: &[],
+                plane_weight: 0.0,
             };
             let (s, it) = self.solve(start, obs, &fit, &con, prior.map(|p| &p.predicted));
             iterations += it;
@@ -464,6 +496,8 @@ impl<'a> Solver<'a> {
                 held: &held,
                 coupled: &coupled,
                 anchor: Some(anchor),
+                planes: &[],
+                plane_weight: 0.0,
             };
             let (s, _) = self.solve(state.clone(), obs, &fit, &con, pred);
             let res = self.residuals(&self.kin.evaluate(&s), obs);
@@ -521,6 +555,8 @@ impl<'a> Solver<'a> {
             held: &held,
             coupled: &coupled,
             anchor: None,
+            planes: &[],
+            plane_weight: 0.0,
         };
         let mut best: [(f64, [[f64; 3]; 3]); 5] = [(f64::INFINITY, [[0.0; 3]; 3]); 5];
         let mut palm = start.palm;
@@ -711,6 +747,10 @@ impl<'a> Solver<'a> {
         for (r, _) in self.coupling_terms(s, con) {
             c += self.opts.coupling_weight * r * r;
         }
+        for pl in con.planes {
+            let r = pl.residual(&(e.links[pl.link] * pl.reference));
+            c += con.plane_weight * r * r;
+        }
         c
     }
 
@@ -815,6 +855,40 @@ impl<'a> Solver<'a> {
         (s, it)
     }
 
+    /// The derivatives of the point `p` riding `link` under `e` with respect to the palm's
+    /// rotation (about the posed wrist centre) and translation and the free angles of the
+    /// joints that move the link (each a world axis through a world centre), written into
+    /// `cols` as (parameter, derivative); returns how many.
+    fn point_columns(
+        &self,
+        e: &Evaluated,
+        link: Link,
+        p: &Point,
+        free: &[bool; MAX_PARAMS],
+        cols: &mut [(usize, Vec3); 12],
+    ) -> usize {
+        let v = p - e.centres[Joint::Wrist.index()];
+        let mut n = 0;
+        for k in 0..3 {
+            let mut ek = Vec3::zeros();
+            ek[k] = 1.0;
+            cols[n] = (k, ek.cross(&v));
+            cols[n + 1] = (3 + k, ek);
+            n += 2;
+        }
+        for &j in self.kin.chain(link) {
+            for d in 0..3 {
+                if let Some(k) = self.kin.param[j.index()][d] {
+                    if free[k] {
+                        cols[n] = (k, e.axes[j.index()][d].cross(&(p - e.centres[j.index()])));
+                        n += 1;
+                    }
+                }
+            }
+        }
+        n
+    }
+
     /// Gauss-Newton normal equations `H δ = −g` at `s` (robust weights at `s`).
     fn normal_equations(
         &self,
@@ -828,7 +902,6 @@ impl<'a> Solver<'a> {
         let e = self.kin.evaluate(s);
         let mut h = Mat::zeros();
         let mut g = Col::zeros();
-        let cw = e.centres[Joint::Wrist.index()];
         let c = self.opts.huber_mm;
         let mut cols: [(usize, Vec3); 12] = [(0, Vec3::zeros()); 12];
         for (i, (m, o)) in self.att.markers.iter().zip(obs).enumerate() {
@@ -839,32 +912,33 @@ impl<'a> Solver<'a> {
             let r = p - o;
             let rn = r.norm();
             let w = if rn <= c { 1.0 } else { c / rn };
-            let v = p - cw;
-            let mut n = 0;
-            // Palm rotation (about the posed wrist centre) and translation.
-            for k in 0..3 {
-                let mut ek = Vec3::zeros();
-                ek[k] = 1.0;
-                cols[n] = (k, ek.cross(&v));
-                cols[n + 1] = (3 + k, ek);
-                n += 2;
-            }
-            for &j in self.kin.chain(m.link) {
-                for d in 0..3 {
-                    if let Some(k) = self.kin.param[j.index()][d] {
-                        if free[k] {
-                            let col = e.axes[j.index()][d].cross(&(p - e.centres[j.index()]));
-                            cols[n] = (k, col);
-                            n += 1;
-                        }
-                    }
-                }
-            }
+            let n = self.point_columns(&e, m.link, &p, free, &mut cols);
             for a in 0..n {
                 let (ia, ca) = cols[a];
                 g[ia] += w * ca.dot(&r);
                 for &(ib, cb) in &cols[a..n] {
                     let v = w * ca.dot(&cb);
+                    h[(ia, ib)] += v;
+                    if ia != ib {
+                        h[(ib, ia)] += v;
+                    }
+                }
+            }
+        }
+        let wp = con.plane_weight;
+        for pl in con.planes {
+            let p = e.links[pl.link] * pl.reference;
+            let r = pl.residual(&p);
+            if r == 0.0 {
+                continue;
+            }
+            let n = self.point_columns(&e, Link::ALL[pl.link], &p, free, &mut cols);
+            for a in 0..n {
+                let (ia, ca) = cols[a];
+                let ja = pl.normal.dot(&ca);
+                g[ia] += wp * ja * r;
+                for &(ib, cb) in &cols[a..n] {
+                    let v = wp * ja * pl.normal.dot(&cb);
                     h[(ia, ib)] += v;
                     if ia != ib {
                         h[(ib, ia)] += v;
@@ -932,6 +1006,35 @@ struct Constraints<'c> {
     held: &'c [Joint],
     coupled: &'c [Joint],
     anchor: Option<&'c HandState>,
+    /// One-sided terms that keep skin points out of the part ([`Solver::refine`]).
+    planes: &'c [ContactPlane],
+    /// Weight of a plane term, mm² per mm² (a marker's is 1).
+    plane_weight: f64,
+}
+
+/// A skin point held out of the part, linearised at a closest point: the point `reference`
+/// (rest posture) rides `link`; the term is `min(0, n·(p − q) + allowance)²` with `p` the point
+/// posed, `q` its closest point on the part and `n` the part's outward normal there (lab frame).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ContactPlane {
+    /// The [`Link::index`] the point rides.
+    pub link: usize,
+    /// The point in the rest posture, mm.
+    pub reference: Point,
+    /// The closest point on the part, lab frame, mm.
+    pub on_part: Point,
+    /// The part's outward unit normal there.
+    pub normal: Vec3,
+    /// How far the point may lie inside before the term acts, mm.
+    pub allowance_mm: f64,
+}
+
+impl ContactPlane {
+    /// The term's residual at the posed point `p`: negative where it lies deeper than the
+    /// allowance, else zero.
+    fn residual(&self, p: &Point) -> f64 {
+        (self.normal.dot(&(p - self.on_part)) + self.allowance_mm).min(0.0)
+    }
 }
 
 /// The state one frame after `b` at the rate from `a` to `b`.

@@ -8,6 +8,8 @@
 //!   analytic derivatives.
 //! * [`inverse_kinematics`]: the per-frame robust Levenberg-Marquardt fit.
 //! * [`part`]: the product's pose per frame from its markers.
+//! * [`keep_out`]: the frames whose skin reaches into the part solved again with terms that
+//!   keep it out where the markers allow.
 //! * [`contacts`]: the posed skin against the posed part, frame by frame, and the contact map
 //!   over the trial.
 //! * [`motion_file`]: the `motion.json` document.
@@ -22,6 +24,7 @@ pub mod cluster_calibration;
 pub mod contacts;
 pub mod fixture;
 pub mod inverse_kinematics;
+pub mod keep_out;
 pub mod kinematics;
 pub mod motion_file;
 pub mod part;
@@ -30,7 +33,8 @@ pub use attachment::{rides_on, AttachedMarker, Attachment};
 pub use contacts::{
     replay_contacts, replay_frames, ContactReplay, FrameContacts, PosedFrame, ReplayOptions,
 };
-pub use inverse_kinematics::{observations, FrameSolution, IkOptions, Solver};
+pub use inverse_kinematics::{observations, ContactPlane, FrameSolution, IkOptions, Solver};
+pub use keep_out::{keep_out_of_part, KeepOutOptions, KeepOutSummary};
 pub use kinematics::{load_link_model, HandState, Kinematics};
 pub use motion_file::{ContactRecord, JointTrack, MotionFile, PartPose, PartTrack};
 pub use part::{fill_pose_gaps, part_poses, PartPoses};

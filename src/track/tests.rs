@@ -490,3 +490,53 @@ fn ranges_read_as_ranges() {
     assert_eq!(ranges(&[1, 2, 3, 7, 9, 10]), "1-3, 7, 9-10");
     assert_eq!(ranges(&[]), "");
 }
+
+/// A one-sided plane term on a point of the index's distal phalanx, asking it 2.5 mm along
+/// the direction the PIP's flexion moves it, is met to within 0.05 mm when weighted far above
+/// the markers; the digit moves, not the palm (its markers keep their fit to 0.2 mm, where
+/// the point moves 2.5 mm), and the same
+/// refine without the term gives back the frame's state.
+#[test]
+fn a_plane_term_moves_its_point_and_the_markers_hold_the_rest() {
+    let (kin, st, att, truth) = grasp_setup(Side::Right, 40);
+    let motion = motion_trial(&kin, &att, &truth, 100.0, 0.0, 1);
+    let tracked = track_trial(&kin, &st, &motion, None, &exact()).unwrap();
+    let att = &tracked.attachment;
+    let obs = observations(att, &motion);
+    let solver = Solver::new(&kin, att, exact());
+    let f = 30;
+    let sol = &tracked.frames[f];
+    let s = sol.state.as_ref().unwrap();
+    let e = kin.evaluate(s);
+    let (pip, dist) = (Joint::IPip, Link::IDist);
+    let p = e.centres[Joint::IDip.index()]
+        + (e.centres[Joint::IDip.index()] - e.centres[pip.index()]) * 0.3;
+    let n = e.axes[pip.index()][0]
+        .cross(&(p - e.centres[pip.index()]))
+        .normalize();
+    let plane = ContactPlane {
+        link: dist.index(),
+        reference: e.links[dist.index()].inverse() * p,
+        on_part: p + n * 3.0,
+        normal: n,
+        allowance_mm: 0.5,
+    };
+    let (same, _) = solver.refine(sol, s, &obs[f], &[plane], 0.0).unwrap();
+    let moved = |a: &HandState| {
+        let (ca, cs) = (kin.centres(a), kin.centres(s));
+        (0..16).map(|j| (ca[j] - cs[j]).norm()).fold(0.0, f64::max)
+    };
+    assert!(moved(&same) < 1e-6, "{}", moved(&same));
+
+    let (out, res) = solver.refine(sol, s, &obs[f], &[plane], 1e5).unwrap();
+    let q = kin.evaluate(&out).links[dist.index()] * plane.reference;
+    let short = n.dot(&(q - plane.on_part)) + plane.allowance_mm;
+    assert!(short > -0.05, "{short} mm short of the plane");
+    for (i, m) in att.markers.iter().enumerate() {
+        if m.link == Link::Palm {
+            let r = res[i].unwrap();
+            assert!(r < 0.2, "{} {r}", m.name);
+        }
+    }
+    assert!(moved(&out) > 1.0, "{}", moved(&out));
+}
