@@ -576,39 +576,47 @@ fn rms_cells(r: Option<&super::motion_accuracy::Rms>, flag_mm: f64) -> [Cell; 2]
     }
 }
 
+/// A summary row: `label`, then [`rms_cells`].
+fn rms_row(
+    label: impl Into<String>,
+    r: Option<&super::motion_accuracy::Rms>,
+    flag_mm: f64,
+) -> Vec<Cell> {
+    std::iter::once(Cell::new(label))
+        .chain(rms_cells(r, flag_mm))
+        .collect()
+}
+
 /// Per tracked motion: a summary (centres, their groups, fingertips, marker residuals,
 /// frames), the joints and tips, and the hold's contact areas per link against the truth.
 pub fn motion_tables(m: &super::motion_accuracy::MotionAccuracy) -> Vec<Table> {
     let mut summary = Table::new(&["quantity", "RMS (mm)", "max (mm)"], &[false, true, true]);
-    summary.rows.push(
-        std::iter::once(Cell::new("joint centres, all solved frames"))
-            .chain(rms_cells(m.centre.as_ref(), FLAG_MOTION_CENTRE_MM))
-            .collect(),
-    );
+    let rows = &mut summary.rows;
+    rows.push(rms_row(
+        "joint centres, all solved frames",
+        m.centre.as_ref(),
+        FLAG_MOTION_CENTRE_MM,
+    ));
     for (k, r) in &m.dof_groups {
-        summary.rows.push(
-            std::iter::once(Cell::new(format!("{k}-DOF joints")))
-                .chain(rms_cells(Some(r), FLAG_MOTION_CENTRE_MM))
-                .collect(),
-        );
+        rows.push(rms_row(
+            format!("{k}-DOF joints"),
+            Some(r),
+            FLAG_MOTION_CENTRE_MM,
+        ));
     }
-    summary.rows.push(
-        std::iter::once(Cell::new("fingertips"))
-            .chain(rms_cells(m.tip.as_ref(), FLAG_MOTION_TIP_MM))
-            .collect(),
-    );
+    rows.push(rms_row("fingertips", m.tip.as_ref(), FLAG_MOTION_TIP_MM));
     for (k, r) in &m.tips {
-        summary.rows.push(
-            std::iter::once(Cell::new(format!("fingertip {k}")))
-                .chain(rms_cells(Some(r), FLAG_MOTION_TIP_MM))
-                .collect(),
-        );
+        rows.push(rms_row(
+            format!("fingertip {k}"),
+            Some(r),
+            FLAG_MOTION_TIP_MM,
+        ));
     }
-    summary.rows.push(
-        std::iter::once(Cell::new("marker residuals"))
-            .chain(rms_cells(m.marker_residual.as_ref(), f64::INFINITY))
-            .collect(),
-    );
+    rows.push(rms_row(
+        "marker residuals",
+        m.marker_residual.as_ref(),
+        f64::INFINITY,
+    ));
     let lost = match &m.lost_frames {
         Some(l) if l.is_empty() => "none".to_string(),
         Some(l) => format!("{} ({})", l.len(), crate::track::ranges(l)),
