@@ -140,16 +140,9 @@ pub(crate) fn track_job(
     let glb = out.join("motion.glb");
     let skin = model_dir.join("skin.obj");
     let replay_opts = ReplayOptions::default();
+    let ik_opts = IkOptions::default();
     let (tracked, loaded) = rayon::join(
-        || {
-            track_trial(
-                &kin,
-                &static_trial,
-                &trial,
-                part.as_ref(),
-                &IkOptions::default(),
-            )
-        },
+        || track_trial(&kin, &static_trial, &trial, part.as_ref(), &ik_opts),
         || -> Result<_> {
             // The skin poses for the animation and the contacts; without it motion.json still
             // stands.
@@ -195,13 +188,13 @@ pub(crate) fn track_job(
     });
     if let (Some(h), Some(p), Some(allowance_mm)) = (&hand, &part_shape, keep_out) {
         let att = tracked.attachment.clone();
-        let solver = Solver::new(&kin, &att, IkOptions::default());
+        let solver = Solver::new(&kin, &att, ik_opts.clone());
         let obs = observations(&att, &trial);
         let opts = KeepOutOptions {
             allowance_mm,
             ..KeepOutOptions::default()
         };
-        let k = keep_out_of_part(&kin, &solver, &obs, &mut tracked, h, p, &opts);
+        let k = keep_out_of_part(&kin, &solver, &obs, &mut tracked, h, p, &opts)?;
         log::debug!(
             "track: {} frames kept out of the part (deepest skin point {:.2} -> {:.2} mm)",
             k.frames.len(),

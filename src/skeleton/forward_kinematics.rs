@@ -47,6 +47,17 @@ impl Pose {
         self.angles[j.index()] = a;
         self
     }
+
+    /// Every joint's angles in degrees, in [`Joint::ALL`] order (as [`Pose::with_deg`] each),
+    /// with the forearm at `root`.
+    pub fn from_deg(angles: &[[f64; 3]], root: Isometry3<f64>) -> Self {
+        let mut pose = Joint::ALL
+            .iter()
+            .zip(angles)
+            .fold(Pose::zero(), |p, (j, a)| p.with_deg(*j, *a));
+        pose.root = root;
+        pose
+    }
 }
 
 /// The rotation of joint `j` in reference coordinates, `F · Rx(θ₀) · Ry(θ₁) · Rz(θ₂) · Fᵀ`,

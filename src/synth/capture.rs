@@ -484,11 +484,7 @@ pub fn simulate_trial(
                 *x += y;
             }
         }
-        let mut pose = Pose::zero();
-        for (j, a) in Joint::ALL.iter().zip(&angles) {
-            pose = pose.with_deg(*j, *a);
-        }
-        pose.root = to_lab * rec.seat * drift.at(t, &pivot);
+        let pose = Pose::from_deg(&angles, to_lab * rec.seat * drift.at(t, &pivot));
         let tf = link_transforms(sk, &pose);
         for ((m, d), mask) in defs.iter().enumerate().zip(&masks) {
             if !mask[f] {

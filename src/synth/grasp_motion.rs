@@ -327,11 +327,7 @@ impl Closer<'_> {
     /// The smallest signed distance from the part of the true skin of `links` (each link's
     /// vertices by their dominant weight, posed by linear blend skinning) at `angles` (degrees).
     fn clearance(&self, angles: &[[f64; 3]; 16], links: &[Link]) -> f64 {
-        let mut pose = Pose::zero();
-        for (j, a) in Joint::ALL.iter().zip(angles) {
-            pose = pose.with_deg(*j, *a);
-        }
-        pose.root = self.root;
+        let pose = Pose::from_deg(angles, self.root);
         let tf = link_transforms(self.sk, &pose);
         let mut posed = Vec::new();
         links
@@ -347,8 +343,8 @@ impl Closer<'_> {
     }
 
     /// Step `angles` by `step` (which returns false at the stage's limit) until one of `links`
-    /// comes within [`STOP_MM`]; the last posture before that is kept. Returns whether a link
-    /// touched.
+    /// is pressed [`STOP_MM`] into the part; the last posture before that is kept. Returns
+    /// whether a link touched.
     fn flex_until(
         &self,
         angles: &mut [[f64; 3]; 16],
@@ -559,11 +555,7 @@ pub fn simulate_grasp(
     let inv = part_pose.inverse();
     let palm_and_thumb = [Link::Palm, Link::TMeta, Link::TProx, Link::TDist];
     let place = |angles: &[[f64; 3]; 16], links: &[Link]| -> Result<f64> {
-        let mut pose = Pose::zero();
-        for (j, a) in Joint::ALL.iter().zip(angles) {
-            pose = pose.with_deg(*j, *a);
-        }
-        pose.root = at_approach;
+        let pose = Pose::from_deg(angles, at_approach);
         let tf = link_transforms(sk, &pose);
         let mut skin = Vec::new();
         let mut posed = Vec::new();
@@ -683,11 +675,7 @@ pub fn simulate_grasp(
         })
         .collect();
     for f in 0..n {
-        let mut pose = Pose::zero();
-        for (j, a) in Joint::ALL.iter().zip(&angles[f]) {
-            pose = pose.with_deg(*j, *a);
-        }
-        pose.root = root[f];
+        let pose = Pose::from_deg(&angles[f], root[f]);
         let tf = link_transforms(sk, &pose);
         let posed = posed_skeleton(sk, &tf);
         for j in Joint::ALL {
@@ -1259,11 +1247,7 @@ mod tests {
             let rest_tip = c + z * reach;
             assert_eq!(t.tips[f.letter()].len(), t.frames);
             for fr in (0..t.frames).step_by(13) {
-                let mut pose = Pose::zero();
-                for (j, a) in Joint::ALL.iter().zip(&m.angles[fr]) {
-                    pose = pose.with_deg(*j, *a);
-                }
-                pose.root = m.root[fr];
+                let pose = Pose::from_deg(&m.angles[fr], m.root[fr]);
                 let want = link_transforms(sk, &pose)[l.index()] * rest_tip;
                 let got = p(&t.tips[f.letter()][fr]);
                 assert!((got - want).norm() < 1e-9, "{f:?} frame {fr}");
@@ -1295,11 +1279,7 @@ mod tests {
         let hold = t.phases.iter().find(|p| p.name == "hold").unwrap();
         let frames = [0, 5, hold.first, (hold.first + hold.last) / 2, hold.last];
         for &fr in &frames {
-            let mut pose = Pose::zero();
-            for (j, a) in Joint::ALL.iter().zip(&m.angles[fr]) {
-                pose = pose.with_deg(*j, *a);
-            }
-            pose.root = m.root[fr];
+            let pose = Pose::from_deg(&m.angles[fr], m.root[fr]);
             let tf = link_transforms(&s.true_skeleton, &pose);
             let posed = crate::skeleton::forward_kinematics::linear_blend(
                 &s.true_skin.vertices,

@@ -1100,10 +1100,7 @@ mod tests {
                 angles[j.index()][d] += a[d];
             }
         }
-        let mut pose = Pose::zero();
-        for (j, a) in Joint::ALL.iter().zip(&angles) {
-            pose = pose.with_deg(*j, *a);
-        }
+        let pose = Pose::from_deg(&angles, Isometry3::identity());
         crate::skeleton::forward_kinematics::link_transforms(&s.true_skeleton, &pose)
     }
 

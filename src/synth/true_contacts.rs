@@ -21,7 +21,7 @@
 //! definition on the skin keeps the tip error a measure of the model, not of definitions.
 
 use super::grasp_motion::{GraspTask, GraspTrial};
-use crate::anatomy::{Finger, Joint, Side};
+use crate::anatomy::{Finger, Side};
 use crate::error::Result;
 use crate::geometry::TriMesh;
 use crate::grasp::contact::PartShape;
@@ -66,11 +66,7 @@ pub fn true_link_transforms(sk: &Skeleton, trial: &GraspTrial) -> Vec<[Isometry3
         .iter()
         .zip(&trial.angles)
         .map(|(root, angles)| {
-            let mut pose = Pose::zero();
-            for (j, a) in Joint::ALL.iter().zip(angles) {
-                pose = pose.with_deg(*j, *a);
-            }
-            pose.root = *root;
+            let pose = Pose::from_deg(angles, *root);
             let t = link_transforms(sk, &pose);
             std::array::from_fn(|l| t[l])
         })

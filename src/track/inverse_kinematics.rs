@@ -913,17 +913,7 @@ impl<'a> Solver<'a> {
             let rn = r.norm();
             let w = if rn <= c { 1.0 } else { c / rn };
             let n = self.point_columns(&e, m.link, &p, free, &mut cols);
-            for a in 0..n {
-                let (ia, ca) = cols[a];
-                g[ia] += w * ca.dot(&r);
-                for &(ib, cb) in &cols[a..n] {
-                    let v = w * ca.dot(&cb);
-                    h[(ia, ib)] += v;
-                    if ia != ib {
-                        h[(ib, ia)] += v;
-                    }
-                }
-            }
+            add_point_term(&mut h, &mut g, &cols[..n], w, &r);
         }
         let wp = con.plane_weight;
         for pl in con.planes {
@@ -933,18 +923,11 @@ impl<'a> Solver<'a> {
                 continue;
             }
             let n = self.point_columns(&e, Link::ALL[pl.link], &p, free, &mut cols);
-            for a in 0..n {
-                let (ia, ca) = cols[a];
-                let ja = pl.normal.dot(&ca);
-                g[ia] += wp * ja * r;
-                for &(ib, cb) in &cols[a..n] {
-                    let v = wp * ja * pl.normal.dot(&cb);
-                    h[(ia, ib)] += v;
-                    if ia != ib {
-                        h[(ib, ia)] += v;
-                    }
-                }
+            // The plane's term is the point's along the normal alone.
+            for c in &mut cols[..n] {
+                c.1 = pl.normal * pl.normal.dot(&c.1);
             }
+            add_point_term(&mut h, &mut g, &cols[..n], wp, &(pl.normal * r));
         }
         let d = self.deviation(s, pred);
         let lam = self.opts.smoothness;
@@ -976,6 +959,21 @@ impl<'a> Solver<'a> {
             }
         }
         (h, g)
+    }
+}
+
+/// Add a point's term `w |r|²` to the normal equations `h`, `g`, its derivatives `cols` (as
+/// [`Solver::point_columns`] gives them: parameter, derivative of the point).
+fn add_point_term(h: &mut Mat, g: &mut Col, cols: &[(usize, Vec3)], w: f64, r: &Vec3) {
+    for (a, &(ia, ca)) in cols.iter().enumerate() {
+        g[ia] += w * ca.dot(r);
+        for &(ib, cb) in &cols[a..] {
+            let v = w * ca.dot(&cb);
+            h[(ia, ib)] += v;
+            if ia != ib {
+                h[(ib, ia)] += v;
+            }
+        }
     }
 }
 

@@ -21,9 +21,11 @@ use super::inverse_kinematics::{ContactPlane, Solver};
 use super::kinematics::Kinematics;
 use super::Tracked;
 use crate::anatomy::Link;
+use crate::error::Result;
 use crate::geometry::Point;
 use crate::grasp::contact::{PartShape, Probe, GRID_BAND_MM};
 use crate::grasp::hand::{PosableHand, SkinnedHand};
+use crate::pose::skinning::SkinBinding;
 use nalgebra::Isometry3;
 use rayon::prelude::*;
 use std::collections::HashSet;
@@ -92,16 +94,6 @@ fn skin_points(hand: &SkinnedHand, spacing: f64) -> Vec<usize> {
         .collect()
 }
 
-/// Rest vertex `i` of `hand` posed by linear blend skinning with the link transforms `links`.
-fn blend(hand: &SkinnedHand, i: usize, links: &[Isometry3<f64>; 17]) -> Point {
-    let v = hand.rest_mesh().vertices[i];
-    let mut p = nalgebra::Vector3::zeros();
-    for &(l, w) in &hand.hand.weights[i] {
-        p += (links[l] * v).coords * w;
-    }
-    Point::from(p)
-}
-
 /// The signed distance of `q` (part frame) from the part, its closest point and the outward
 /// normal there; `None` when farther than the grid's band outside (or unknown).
 fn signed(part: &PartShape, q: &Point) -> Option<(f64, Point, nalgebra::Vector3<f64>)> {
@@ -118,7 +110,8 @@ fn signed(part: &PartShape, q: &Point) -> Option<(f64, Point, nalgebra::Vector3<
 /// Solve again every frame of `tracked` (observations `obs`, by `solver` of `kin`) whose
 /// skin (`hand`) lies deeper than the allowance into `part` (its own frame, posed by
 /// `tracked.part`), so that it does not where the markers allow; the frames' states and
-/// marker residuals are replaced. Frames run in parallel.
+/// marker residuals are replaced. Frames run in parallel. Errors only if the hand's weights
+/// cannot be bound to its skin points.
 pub fn keep_out_of_part(
     kin: &Kinematics,
     solver: &Solver,
@@ -127,11 +120,20 @@ pub fn keep_out_of_part(
     hand: &SkinnedHand,
     part: &PartShape,
     opts: &KeepOutOptions,
-) -> KeepOutSummary {
+) -> Result<KeepOutSummary> {
     let Some((poses, _)) = tracked.part.as_ref() else {
-        return KeepOutSummary::default();
+        return Ok(KeepOutSummary::default());
     };
     let points = skin_points(hand, opts.spacing_mm);
+    let rest: Vec<Point> = points
+        .iter()
+        .map(|&i| hand.rest_mesh().vertices[i])
+        .collect();
+    let weights: Vec<_> = points
+        .iter()
+        .map(|&i| hand.hand.weights[i].clone())
+        .collect();
+    let binding = SkinBinding::new(&rest, &weights, Link::ALL.len())?;
     let link_of = hand.vertex_link();
     let allow = opts.allowance_mm;
     // The deepest point of the frame at `state`, and its terms.
@@ -140,8 +142,9 @@ pub fn keep_out_of_part(
         let to_part = pose.inverse();
         let mut deepest = 0.0f64;
         let mut planes = Vec::new();
-        for &i in &points {
-            let p = blend(hand, i, &e.links);
+        let mut posed = Vec::new();
+        binding.linear_into(&e.links, &mut posed);
+        for (&i, &p) in points.iter().zip(&posed) {
             let Some((d, c, n)) = signed(part, &(to_part * p)) else {
                 continue;
             };
@@ -200,5 +203,5 @@ pub fn keep_out_of_part(
         tracked.frames[r.frame].state = Some(r.state);
         tracked.frames[r.frame].residual_mm = r.residual_mm;
     }
-    summary
+    Ok(summary)
 }
