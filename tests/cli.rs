@@ -509,8 +509,8 @@ fn track_the_grasp_trial(subj: &Path, model: &Path, out: &Path) {
     // allow. Measured the way the contacts are (every skin vertex, not the keep-out's sample),
     // the deepest penetration over the trial comes to within 1.5 mm of the allowance and never
     // grows, and the joint centres stay within the tracking goal (2 mm RMS; the keep-out costs
-    // some of their accuracy, see the README). Without it the plain track is 13-14 mm deep
-    // where synth's thumb passes through the bottle on its way round it (close and release).
+    // some of their accuracy, see the README). Without it the plain track follows the truth
+    // deeper where synth's withdrawing thumb still grazes the bottle.
     let deepest = |m: &serde_json::Value| -> f64 {
         m["contacts"]
             .as_array()

@@ -625,6 +625,34 @@ pub fn simulate_grasp(
         let about = Isometry3::from_parts(Translation3::from(w.coords - turn * w.coords), turn);
         Translation3::from(-palmar * back + Vec3::z() * up) * about * grasp_root
     };
+    // Per digit, the point of its closing line (0 reference, 1 closed) from which on the rest
+    // of the line is clear of the part at the grasp (5 % steps, then 1 %): a digit closing on
+    // the straight line from the reference posture would otherwise cross the part on the way
+    // (the thumb above all).
+    let ahead: [f64; 5] = Finger::ALL.map(|fi| {
+        let links = fi.links();
+        let at = |s: f64| {
+            let mut x = closed;
+            for j in fi.joints().map(|j| j.index()) {
+                x[j] = closed[j].map(|v| v * s);
+            }
+            x
+        };
+        let clear = |s: f64| closer.clearance(&at(s), &links) > STOP_MM;
+        let Some(k) = (0..20).rev().find(|&k| !clear(k as f64 / 20.0)) else {
+            return 0.0;
+        };
+        let (mut lo, mut hi) = (k as f64 / 20.0, (k + 1) as f64 / 20.0);
+        while hi - lo > 0.01 {
+            let mid = 0.5 * (lo + hi);
+            if clear(mid) {
+                hi = mid;
+            } else {
+                lo = mid;
+            }
+        }
+        hi
+    });
     let start = offset(60.0, 50.0, 20.0);
     let end = offset(60.0, 30.0, -10.0);
     let n = (duration_s * rate).round() as usize;
@@ -644,7 +672,22 @@ pub fn simulate_grasp(
         root.push(r);
         part.push(lift * part_pose);
         let c = closure(u);
-        angles.push(closed.iter().map(|a| a.map(|x| x * c)).collect::<Vec<_>>());
+        let mut a = [[0.0; 3]; 16];
+        for (k, d) in a.iter_mut().enumerate() {
+            *d = closed[k].map(|x| x * c);
+        }
+        // Each digit moves on the straight line from the reference posture to its closed
+        // one, but never through the part: at least as closed as `ahead` asks (see below), so
+        // that it shapes round the part while the hand reaches and stays round it until the
+        // hand withdraws.
+        let pre = ramp(u, 0.05, 0.22) * (1.0 - ramp(u, 0.86, 1.0));
+        for (fi, s_min) in Finger::ALL.iter().zip(ahead) {
+            let s = c.max(s_min * pre);
+            for j in fi.joints().map(|j| j.index()) {
+                a[j] = closed[j].map(|v| v * s);
+            }
+        }
+        angles.push(a.to_vec());
     }
 
     // The markers, frame by frame.
