@@ -267,6 +267,11 @@ fn validate_like_a_real_subject(subj: &Path, model: &Path, full: &serde_json::Va
 /// `ergohand track` on the grasp trial synth wrote beside the calibration trials, scored
 /// against synth's own record of the motion (`truth_motion/`): the subject is clean, so what
 /// remains is the reconstructed link model's own error (its 1-DOF centres), not the tracker's.
+/// The distance between two points, mm.
+fn distance(a: [f64; 3], b: [f64; 3]) -> f64 {
+    ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt()
+}
+
 fn track_the_grasp_trial(subj: &Path, model: &Path, out: &Path) {
     let (s, m, o) = (
         subj.to_str().unwrap(),
@@ -286,20 +291,26 @@ fn track_the_grasp_trial(subj: &Path, model: &Path, out: &Path) {
     );
     assert!(!out.exists());
 
-    let r = ergohand(&[
-        "track",
-        s,
-        "--model",
-        m,
-        "--motion",
-        "grasp_bottle",
-        "--scene",
-        scene,
-        "--out",
-        o,
-        "-q",
-    ]);
-    assert!(r.status.success(), "{}", stderr(&r));
+    // The grasp trial tracked into `dir` with the bottle's scene, and `extra` options.
+    let track_grasp = |dir: &str, extra: &[&str]| {
+        let mut args = vec![
+            "track",
+            s,
+            "--model",
+            m,
+            "--motion",
+            "grasp_bottle",
+            "--scene",
+            scene,
+            "--out",
+            dir,
+            "-q",
+        ];
+        args.extend_from_slice(extra);
+        let r = ergohand(&args);
+        assert!(r.status.success(), "{}", stderr(&r));
+    };
+    track_grasp(o, &[]);
     let read = |p: &Path| -> serde_json::Value {
         serde_json::from_str(&std::fs::read_to_string(p).unwrap()).unwrap()
     };
@@ -313,20 +324,23 @@ fn track_the_grasp_trial(subj: &Path, model: &Path, out: &Path) {
         let a = v.as_array().unwrap();
         [0, 1, 2].map(|k| a[k].as_f64().unwrap())
     };
-    let (mut ss, mut n, mut worst) = (0.0, 0usize, 0.0f64);
-    for (joint, t) in truth["joints"].as_object().unwrap() {
-        for f in 0..frames {
-            let (a, b) = (
-                point(&got["joints"][joint]["centre"][f]),
-                point(&t["centre"][f]),
-            );
-            let d = ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt();
-            ss += d * d;
-            n += 1;
-            worst = worst.max(d);
+    // A tracked motion's joint centres against the truth's: (count, RMS, worst), mm.
+    let centre_errors = |m: &serde_json::Value| -> (usize, f64, f64) {
+        let (mut ss, mut n, mut worst) = (0.0, 0usize, 0.0f64);
+        for (joint, t) in truth["joints"].as_object().unwrap() {
+            for f in 0..frames {
+                let d = distance(
+                    point(&m["joints"][joint]["centre"][f]),
+                    point(&t["centre"][f]),
+                );
+                ss += d * d;
+                n += 1;
+                worst = worst.max(d);
+            }
         }
-    }
-    let rms = (ss / n as f64).sqrt();
+        (n, (ss / n as f64).sqrt(), worst)
+    };
+    let (n, rms, worst) = centre_errors(&got);
     assert!(
         n == 16 * frames && rms < 1.0 && worst < 3.0,
         "RMS {rms} mm, worst {worst} mm"
@@ -334,11 +348,10 @@ fn track_the_grasp_trial(subj: &Path, model: &Path, out: &Path) {
     // The bottle follows its markers (Horn, exact without noise).
     let part = &got["part"]["pose"];
     for f in (0..frames).step_by(37) {
-        let (a, b) = (
+        let d = distance(
             point(&part[f]["translation_mm"]),
             point(&truth["part"]["position"][f]),
         );
-        let d = ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt();
         assert!(d < 1e-3, "frame {f}: part {d} mm off");
     }
 
@@ -405,11 +418,8 @@ fn track_the_grasp_trial(subj: &Path, model: &Path, out: &Path) {
         })
         .unwrap();
     for f in (0..frames).step_by(37) {
-        let a = point(&part[f]["translation_mm"]);
-        let d = ((a[0] - part_t[f].x).powi(2)
-            + (a[1] - part_t[f].y).powi(2)
-            + (a[2] - part_t[f].z).powi(2))
-        .sqrt();
+        let t = part_t[f];
+        let d = distance(point(&part[f]["translation_mm"]), [t.x, t.y, t.z]);
         assert!(d < 1e-3, "frame {f}: glb part {d} mm from motion.json");
     }
 
@@ -520,36 +530,11 @@ fn track_the_grasp_trial(subj: &Path, model: &Path, out: &Path) {
             .fold(0.0, f64::max)
     };
     let kept = out.with_file_name("TRACK_KEEP_OUT");
-    let r = ergohand(&[
-        "track",
-        s,
-        "--model",
-        m,
-        "--motion",
-        "grasp_bottle",
-        "--scene",
-        scene,
-        "--keep-out",
-        "1",
-        "--out",
-        kept.to_str().unwrap(),
-        "-q",
-    ]);
-    assert!(r.status.success(), "{}", stderr(&r));
+    track_grasp(kept.to_str().unwrap(), &["--keep-out", "1"]);
     let k = read(&kept.join("motion.json"));
     let (before, after) = (deepest(&got), deepest(&k));
     assert!(after < 2.5 && after <= before, "{before} -> {after} mm");
-    let mut ss = 0.0;
-    for (joint, t) in truth["joints"].as_object().unwrap() {
-        for f in 0..frames {
-            let (a, b) = (
-                point(&k["joints"][joint]["centre"][f]),
-                point(&t["centre"][f]),
-            );
-            ss += (a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2);
-        }
-    }
-    let kept_rms = (ss / n as f64).sqrt();
+    let (_, kept_rms, _) = centre_errors(&k);
     assert!(kept_rms < 2.0, "centres {rms} -> {kept_rms} mm RMS");
 
     // A model folder without skin.obj: motion.json still, no motion.glb, a warning naming it.

@@ -314,6 +314,14 @@ fn lifted(u: f64) -> f64 {
     ramp(u, 0.50, 0.62) * (1.0 - ramp(u, 0.68, 0.78))
 }
 
+/// Put digit `fi` of `angles` at `s` along its closing line: its joints at `s` times their
+/// `closed` angles (0 the reference posture, 1 closed), degrees.
+fn close_digit_to(angles: &mut [[f64; 3]; 16], closed: &[[f64; 3]; 16], fi: Finger, s: f64) {
+    for j in fi.joints().map(|j| j.index()) {
+        angles[j] = closed[j].map(|v| v * s);
+    }
+}
+
 /// The true skin of the digits and the part, for the closing.
 struct Closer<'a> {
     sk: &'a Skeleton,
@@ -631,14 +639,11 @@ pub fn simulate_grasp(
     // (the thumb above all).
     let ahead: [f64; 5] = Finger::ALL.map(|fi| {
         let links = fi.links();
-        let at = |s: f64| {
+        let clear = |s: f64| {
             let mut x = closed;
-            for j in fi.joints().map(|j| j.index()) {
-                x[j] = closed[j].map(|v| v * s);
-            }
-            x
+            close_digit_to(&mut x, &closed, fi, s);
+            closer.clearance(&x, &links) > STOP_MM
         };
-        let clear = |s: f64| closer.clearance(&at(s), &links) > STOP_MM;
         let Some(k) = (0..20).rev().find(|&k| !clear(k as f64 / 20.0)) else {
             return 0.0;
         };
@@ -672,20 +677,14 @@ pub fn simulate_grasp(
         root.push(r);
         part.push(lift * part_pose);
         let c = closure(u);
-        let mut a = [[0.0; 3]; 16];
-        for (k, d) in a.iter_mut().enumerate() {
-            *d = closed[k].map(|x| x * c);
-        }
         // Each digit moves on the straight line from the reference posture to its closed
-        // one, but never through the part: at least as closed as `ahead` asks (see below), so
-        // that it shapes round the part while the hand reaches and stays round it until the
-        // hand withdraws.
+        // one, but never through the part: at least as closed as `ahead` asks, so that it
+        // shapes round the part while the hand reaches and stays round it until the hand
+        // withdraws. The wrist closes with `c` alone.
         let pre = ramp(u, 0.05, 0.22) * (1.0 - ramp(u, 0.86, 1.0));
-        for (fi, s_min) in Finger::ALL.iter().zip(ahead) {
-            let s = c.max(s_min * pre);
-            for j in fi.joints().map(|j| j.index()) {
-                a[j] = closed[j].map(|v| v * s);
-            }
+        let mut a = closed.map(|d| d.map(|x| x * c));
+        for (&fi, s_min) in Finger::ALL.iter().zip(ahead) {
+            close_digit_to(&mut a, &closed, fi, c.max(s_min * pre));
         }
         angles.push(a.to_vec());
     }
