@@ -1,8 +1,9 @@
 //! Grasp stage (the speed goals): one evaluation (pose by linear blend skinning +
 //! contacts + force closure and epsilon) of the 37k-face template hand against a
 //! ~100k-triangle bottle (< 5 ms), its contact query and its epsilon alone (the nearest-facet
-//! search) against the whole hull's epsilon and volume, one autograsp (< 100 ms), and a
-//! placement search of 1,000 candidates (< 15 s).
+//! search) against the whole hull's epsilon and volume, one autograsp (< 100 ms), a precision
+//! plan fitted to the hand (once per scene), and a placement search of 1,000 candidates
+//! (< 15 s).
 
 use criterion::{criterion_group, criterion_main, Criterion};
 use ergohand::anatomy::Side;
@@ -11,7 +12,7 @@ use ergohand::grasp::autograsp::{autograsp, root_for, AutograspOptions};
 use ergohand::grasp::contact::{contacts, vertex_areas, ContactOptions, PartShape};
 use ergohand::grasp::parts::{mesh_sdf, Part};
 use ergohand::grasp::placement::placement_search;
-use ergohand::grasp::plan::grasp_plan;
+use ergohand::grasp::plan::{fit_thumb_to_pads, grasp_plan};
 use ergohand::grasp::quality::{grasp_epsilon, grasp_quality};
 use ergohand::grasp::scene::{pose_from, GraspType};
 use ergohand::grasp::{evaluate, PosableHand, SkinnedHand};
@@ -89,6 +90,11 @@ fn grasp_bench(c: &mut Criterion) {
     });
     gr.bench_function("autograsp_power_bottle", |b| {
         b.iter(|| autograsp(&hand, &part, &plan, black_box(root), &opts).unwrap())
+    });
+    // The precision plan fitted to the hand, once per scene: a fraction of one autograsp.
+    let tripod = grasp_plan(GraspType::Tripod);
+    gr.bench_function("fit_thumb_to_pads_tripod", |b| {
+        b.iter(|| fit_thumb_to_pads(black_box(&tripod), &hand))
     });
     gr.measurement_time(std::time::Duration::from_secs(110));
     gr.bench_function("placement_search_1000", |b| {

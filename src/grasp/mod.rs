@@ -30,7 +30,7 @@ use crate::io::Units;
 use autograsp::{autograsp, root_for, AutograspOptions};
 use contact::{contacts, vertex_areas, ContactOptions, ContactSet, PartShape};
 use nalgebra::Isometry3;
-use plan::grasp_plan;
+use plan::grasp_plan_for;
 use scene::{Approach, Scene};
 use serde::Serialize;
 use std::collections::BTreeMap;
@@ -320,7 +320,7 @@ pub fn run_scene(scene: &Scene, hand: &dyn PosableHand) -> Result<GraspOutcome> 
         log::warn!("{w}");
     }
     timings.part_s = clock.elapsed().as_secs_f64();
-    let plan = grasp_plan(scene.grasp);
+    let plan = grasp_plan_for(scene.grasp, hand);
     let clock = std::time::Instant::now();
     let approaches = match &scene.approach {
         Approach::Given(a) => vec![scene.part_pose * a],
@@ -649,6 +649,30 @@ mod tests {
             depth > autograsp::SQUEEZE_MM / 2.0,
             "T_DIST pressed {depth} mm"
         );
+        assert_eq!(area("PALM"), 0.0, "{:?}", r.contact_area_mm2);
+        assert!(r.warnings.is_empty(), "{:?}", r.warnings);
+        assert!(r.force_closure && r.epsilon > 0.0, "{}", r.epsilon);
+        assert!(r.holds, "{:?}", r.hold_test);
+    }
+
+    /// The pen in a pinch (thumb and index pads, the plan fitted to the hand): held pad to pad,
+    /// both pressed in by the squeeze, off the palm, force closure, and it holds in rapier in
+    /// all six directions (with the template plan's closed posture the pads met tip to tip in
+    /// a V and the squeeze pushed the pen out).
+    #[test]
+    fn pinch_of_the_pen_holds_pad_to_pad() {
+        let mut s = shipped_scene("pen");
+        s.grasp = scene::GraspType::Pinch;
+        let r = &run_scene(&s, hand()).unwrap().report;
+        let area = |l: &str| r.contact_area_mm2.get(l).copied().unwrap_or(0.0);
+        for pad in ["T_DIST", "I_DIST"] {
+            let depth = r.squeeze.depth_mm.get(pad).copied().unwrap_or(0.0);
+            assert!(area(pad) > 0.0, "{pad}: {:?}", r.contact_area_mm2);
+            assert!(
+                depth > autograsp::SQUEEZE_MM / 2.0,
+                "{pad} pressed {depth} mm"
+            );
+        }
         assert_eq!(area("PALM"), 0.0, "{:?}", r.contact_area_mm2);
         assert!(r.warnings.is_empty(), "{:?}", r.warnings);
         assert!(r.force_closure && r.epsilon > 0.0, "{}", r.epsilon);

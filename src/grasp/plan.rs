@@ -214,3 +214,321 @@ pub(crate) fn digit_links(f: Finger) -> [Link; 3] {
     let j = f.joints();
     [j[0].child_link(), j[1].child_link(), j[2].child_link()]
 }
+
+/// A digit's distal pad: the most palmar skin point of the pulp of its distal link (between 30
+/// and 75 % of the link's length from its joint) in the rest posture, with the link's palmar
+/// direction as its outward normal.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Pad {
+    /// The distal link.
+    pub link: Link,
+    /// The pad point, rest posture, mm.
+    pub point: Point,
+    /// Outward normal of the pad (palmar of the link), rest posture.
+    pub normal: Vec3,
+}
+
+impl Pad {
+    /// The pad moved with its link by `transforms`
+    /// ([`crate::skeleton::forward_kinematics::link_transforms`]).
+    pub fn posed(&self, transforms: &[Isometry3<f64>]) -> (Point, Vec3) {
+        let t = &transforms[self.link.index()];
+        (t * self.point, t.rotation * self.normal)
+    }
+}
+
+/// The distal pad of digit `f` of `hand` ([`Pad`]); `None` when its distal link has no skin
+/// in the pulp.
+pub fn distal_pad(hand: &dyn PosableHand, f: Finger) -> Option<Pad> {
+    let sk = hand.skeleton();
+    let j = f.joints()[2];
+    let frame = sk.joint(j);
+    let c = frame.centre;
+    let (along, palmar) = (frame.z(), -frame.y());
+    let length = (sk.tips[f as usize] - c).dot(&along);
+    let link = j.child_link();
+    let mesh = hand.rest_mesh();
+    hand.link_vertices()[link.index()]
+        .iter()
+        .map(|&i| mesh.vertices[i])
+        .filter(|v| {
+            let s = (v - c).dot(&along);
+            s >= 0.3 * length && s <= 0.75 * length
+        })
+        .max_by(|a, b| (a - c).dot(&palmar).total_cmp(&(b - c).dot(&palmar)))
+        .map(|point| Pad {
+            link,
+            point,
+            normal: palmar,
+        })
+}
+
+/// How far from opposition the thumb's pad may turn, as a length: `OPPOSITION_MM · (1 + cos)`
+/// of the angle between the pads' normals is added to the pads' distance (30° off opposition
+/// counts as 2.7 mm, a right angle as 20 mm). Within the friction cone (μ = 0.5: 27°) a pinch
+/// holds; beyond, the squeezed part slips out between the pads.
+const OPPOSITION_MM: f64 = 20.0;
+
+/// Scales of the closing fingers' closed posture tried by [`fit_thumb_to_pads`] (each joint's
+/// closed angle times the scale, from the hand's reference posture).
+const FINGER_SCALES: [f64; 6] = [0.4, 0.55, 0.7, 0.85, 1.0, 1.15];
+
+/// The thumb's closed posture of a precision plan fitted to `hand` (its own link model and
+/// skin), so that its distal pad meets the closing fingers' pads face to face: the thumb pad's
+/// point on the midpoint of the fingers' pad points (the index's alone in a pinch) and its
+/// normal against theirs. The closing fingers' closed posture is scaled too (a finger curled
+/// too far turns its pad toward the wrist, where no thumb can face it): for each scale, a grid
+/// over the thumb's range (10° steps) then a pattern search to 0.6°, on forward kinematics of
+/// the pad points only; a light pull toward the plan's own posture (0.1 mm per degree) decides
+/// between equally good postures. Plans without pads (power) or with a support (lateral) are
+/// returned as they are.
+pub fn fit_thumb_to_pads(plan: &GraspPlan, hand: &dyn PosableHand) -> GraspPlan {
+    if plan.pads.len() < 2 || plan.pads[0] != Link::TDist || plan.support.is_some() {
+        return plan.clone();
+    }
+    let Some(thumb) = distal_pad(hand, Finger::Thumb) else {
+        return plan.clone();
+    };
+    let closing: Vec<Finger> = plan.pads[1..]
+        .iter()
+        .filter_map(|&l| Finger::ALL.into_iter().find(|&f| digit_links(f)[2] == l))
+        .collect();
+    let fingers: Vec<Pad> = closing
+        .iter()
+        .filter_map(|&f| distal_pad(hand, f))
+        .collect();
+    if fingers.len() + 1 != plan.pads.len() {
+        return plan.clone();
+    }
+    let mut best: Option<(f64, GraspPlan)> = None;
+    for scale in FINGER_SCALES {
+        let mut out = plan.clone();
+        for f in Finger::ALL
+            .into_iter()
+            .filter(|f| *f != Finger::Thumb && plan.active[f.joints()[0].index()])
+        {
+            for j in f.joints() {
+                out.closed[j.index()] = plan.closed[j.index()].map(|a| a * scale);
+            }
+        }
+        let cost = fit_thumb(&mut out, hand, &thumb, &fingers);
+        if best.as_ref().is_none_or(|b| cost < b.0) {
+            best = Some((cost, out));
+        }
+    }
+    best.map(|b| b.1).unwrap_or_else(|| plan.clone())
+}
+
+/// [`fit_thumb_to_pads`] for one closed posture of the fingers: the thumb's closed angles of
+/// `plan` replaced by the best found; returns its cost (mm²).
+fn fit_thumb(plan: &mut GraspPlan, hand: &dyn PosableHand, thumb: &Pad, fingers: &[Pad]) -> f64 {
+    let sk = hand.skeleton();
+    let closed = crate::skeleton::Pose {
+        angles: plan.closed,
+        root: Isometry3::identity(),
+    };
+    let tr = crate::skeleton::forward_kinematics::link_transforms(sk, &closed);
+    let (mut target, mut facing) = (Vec3::zeros(), Vec3::zeros());
+    for p in fingers {
+        let (q, n) = p.posed(&tr);
+        target += q.coords;
+        facing += n;
+    }
+    let target = Point::from(target / fingers.len() as f64);
+    let facing = facing.normalize();
+    let joints = Finger::Thumb.joints();
+    // The thumb's five degrees of freedom: CMC flexion, abduction, axial rotation, MCP, IP.
+    let dofs: [(Joint, usize); 5] = [
+        (joints[0], 0),
+        (joints[0], 1),
+        (joints[0], 2),
+        (joints[1], 0),
+        (joints[2], 0),
+    ];
+    let limits: Vec<[f64; 2]> = dofs.iter().map(|&(j, d)| joint_limits_deg(j)[d]).collect();
+    let start: Vec<f64> = dofs
+        .iter()
+        .map(|&(j, d)| plan.closed[j.index()][d].to_degrees())
+        .collect();
+    let mut pose = closed.clone();
+    let mut cost = |x: &[f64]| {
+        for (k, &(j, d)) in dofs.iter().enumerate() {
+            pose.angles[j.index()][d] = x[k].to_radians();
+        }
+        let t = crate::skeleton::forward_kinematics::link_transforms(sk, &pose);
+        let (p, n) = thumb.posed(&t);
+        let pull: f64 = x
+            .iter()
+            .zip(&start)
+            .map(|(a, b)| (0.1 * (a - b)).powi(2))
+            .sum();
+        (p - target).norm_squared() + (OPPOSITION_MM * (1.0 + n.dot(&facing))).powi(2) + pull
+    };
+    let mut best = (cost(&start), start.clone());
+    let grid = |k: usize| {
+        let [lo, hi] = limits[k];
+        let n = ((hi - lo) / 10.0).floor() as usize;
+        (0..=n).map(move |i| lo + 10.0 * i as f64)
+    };
+    for a in grid(0) {
+        for b in grid(1) {
+            for c in grid(2) {
+                for m in grid(3) {
+                    for i in grid(4).filter(|&i| (0.0..=60.0).contains(&i)) {
+                        let x = [a, b, c, m, i];
+                        let f = cost(&x);
+                        if f < best.0 {
+                            best = (f, x.to_vec());
+                        }
+                    }
+                }
+            }
+        }
+    }
+    let mut step = 5.0;
+    while step > 0.6 {
+        let mut moved = false;
+        for k in 0..5 {
+            for s in [-step, step] {
+                let mut x = best.1.clone();
+                x[k] = (x[k] + s).clamp(limits[k][0], limits[k][1]);
+                let f = cost(&x);
+                if f < best.0 - 1e-12 {
+                    best = (f, x);
+                    moved = true;
+                }
+            }
+        }
+        if !moved {
+            step /= 2.0;
+        }
+    }
+    for (k, &(j, d)) in dofs.iter().enumerate() {
+        plan.closed[j.index()][d] = best.1[k].to_radians();
+    }
+    best.0
+}
+
+/// [`grasp_plan`] of `kind` fitted to `hand` ([`fit_thumb_to_pads`] for the precision types).
+pub fn grasp_plan_for(kind: GraspType, hand: &dyn PosableHand) -> GraspPlan {
+    fit_thumb_to_pads(&grasp_plan(kind), hand)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::anatomy::Side;
+    use crate::grasp::RigidHand;
+    use crate::skeleton::forward_kinematics::{link_transforms, posed_skeleton};
+    use crate::skeleton::Pose;
+
+    /// Distance (mm) of the thumb's pad point from the fingers' target point and the angle
+    /// (degrees) of its normal from facing them, in the plan's closed posture.
+    fn pad_meeting(hand: &dyn PosableHand, plan: &GraspPlan) -> (f64, f64) {
+        let tr = link_transforms(
+            hand.skeleton(),
+            &Pose {
+                angles: plan.closed,
+                root: Isometry3::identity(),
+            },
+        );
+        let (t, n) = distal_pad(hand, Finger::Thumb).unwrap().posed(&tr);
+        let fingers: Vec<(Point, Vec3)> = plan.pads[1..]
+            .iter()
+            .map(|&l| {
+                let f = Finger::ALL
+                    .into_iter()
+                    .find(|&f| digit_links(f)[2] == l)
+                    .unwrap();
+                distal_pad(hand, f).unwrap().posed(&tr)
+            })
+            .collect();
+        let k = fingers.len() as f64;
+        let target = Point::from(fingers.iter().map(|f| f.0.coords).sum::<Vec3>() / k);
+        let facing = fingers.iter().map(|f| f.1).sum::<Vec3>().normalize();
+        (
+            (t - target).norm(),
+            (-n.dot(&facing)).clamp(-1.0, 1.0).acos().to_degrees(),
+        )
+    }
+
+    /// The template as a hand whose reference posture is another one: every link moved by the
+    /// posture `deg`, the skin rigidly with its dominant link, the joint frames re-made in the
+    /// new posture (as a reconstruction from another subject's static trial makes them).
+    fn re_referenced(deg: &[(Joint, [f64; 3])]) -> RigidHand {
+        let h = RigidHand::template(Side::Right).unwrap();
+        let pose = deg.iter().fold(Pose::zero(), |p, &(j, d)| p.with_deg(j, d));
+        let tr = link_transforms(&h.skeleton, &pose);
+        let mut mesh = h.mesh.clone();
+        for (v, &l) in mesh.vertices.iter_mut().zip(&h.links) {
+            *v = tr[l] * *v;
+        }
+        RigidHand::new(posed_skeleton(&h.skeleton, &tr), mesh, h.links.clone()).unwrap()
+    }
+
+    /// On the template the fitted precision plans put the thumb's pad on the fingers' pads
+    /// (within 4 mm) and turn it further toward them than the plan's posture does.
+    #[test]
+    fn fitted_pads_meet_on_the_template() {
+        let h = RigidHand::template(Side::Right).unwrap();
+        for kind in [GraspType::Tripod, GraspType::Pinch, GraspType::Precision] {
+            let plan = grasp_plan(kind);
+            let fitted = fit_thumb_to_pads(&plan, &h);
+            let (d0, a0) = pad_meeting(&h, &plan);
+            let (d, a) = pad_meeting(&h, &fitted);
+            assert!(
+                d < 4.0,
+                "{kind:?}: thumb pad {d:.1} mm from the fingers' pads"
+            );
+            assert!(
+                a < a0 - 10.0,
+                "{kind:?}: opposition {a:.0}° (plan {a0:.0}°)"
+            );
+            assert!(
+                d <= d0 + 1.0,
+                "{kind:?}: {d:.1} mm against the plan's {d0:.1}"
+            );
+            // The preshape is kept: the part still has room between the pads.
+            assert_eq!(fitted.preshape, plan.preshape);
+        }
+        let power = grasp_plan(GraspType::Power);
+        assert_eq!(fit_thumb_to_pads(&power, &h), power);
+        let lateral = grasp_plan(GraspType::Lateral);
+        assert_eq!(fit_thumb_to_pads(&lateral, &h), lateral);
+    }
+
+    /// A hand whose reference posture differs from the template's (thumb flexed and abducted,
+    /// fingers bent) gets the same angles of the plan as a different posture: the plan's pads
+    /// end centimetres apart, the fitted ones meet as on the template, within the joint limits.
+    #[test]
+    fn the_fit_follows_the_hands_own_reference_posture() {
+        let h = re_referenced(&[
+            (Joint::TCmc, [25.0, 20.0, -15.0]),
+            (Joint::TMcp, [20.0, 0.0, 0.0]),
+            (Joint::IMcp, [25.0, 0.0, 0.0]),
+            (Joint::IPip, [20.0, 0.0, 0.0]),
+            (Joint::MMcp, [25.0, 0.0, 0.0]),
+            (Joint::MPip, [20.0, 0.0, 0.0]),
+        ]);
+        let plan = grasp_plan(GraspType::Tripod);
+        let fitted = fit_thumb_to_pads(&plan, &h);
+        let (d0, _) = pad_meeting(&h, &plan);
+        let (d, a) = pad_meeting(&h, &fitted);
+        assert!(
+            d0 > 10.0,
+            "the plan's pads are {d0:.1} mm apart on this hand"
+        );
+        // Within a pad's half-width (the template's own fit: 3.2 mm, 52°).
+        assert!(
+            d < 5.0,
+            "fitted: thumb pad {d:.1} mm from the fingers' pads"
+        );
+        assert!(a < 60.0, "fitted: opposition {a:.0}°");
+        for j in Joint::ALL {
+            for (x, [lo, hi]) in fitted.closed[j.index()].iter().zip(joint_limits_deg(j)) {
+                let x = x.to_degrees();
+                assert!(x >= lo - 1e-9 && x <= hi + 1e-9, "{}: {x}", j.name());
+            }
+        }
+    }
+}
