@@ -1,15 +1,17 @@
 //! Grasp stage (the speed goals): one evaluation (pose by linear blend skinning +
 //! contacts + force closure and epsilon) of the 37k-face template hand against a
 //! ~100k-triangle bottle (< 5 ms), its contact query and its epsilon alone (the nearest-facet
-//! search) against the whole hull's epsilon and volume, one autograsp (< 100 ms), a precision
+//! search) against the whole hull's epsilon and volume, one autograsp (< 100 ms), the hold test
+//! and the part's simplification for it, a precision
 //! plan fitted to the hand (once per scene), and a placement search of 1,000 candidates
 //! (< 15 s).
 
 use criterion::{criterion_group, criterion_main, Criterion};
 use ergohand::anatomy::Side;
 use ergohand::geometry::Point;
-use ergohand::grasp::autograsp::{autograsp, root_for, AutograspOptions};
+use ergohand::grasp::autograsp::{autograsp, root_for, squeeze, AutograspOptions};
 use ergohand::grasp::contact::{contacts, vertex_areas, ContactOptions, PartShape};
+use ergohand::grasp::hold::{hold_mesh, hold_test_hand};
 use ergohand::grasp::parts::{mesh_sdf, Part};
 use ergohand::grasp::placement::placement_search;
 use ergohand::grasp::plan::{fit_thumb_to_pads, grasp_plan};
@@ -90,6 +92,21 @@ fn grasp_bench(c: &mut Criterion) {
     });
     gr.bench_function("autograsp_power_bottle", |b| {
         b.iter(|| autograsp(&hand, &part, &plan, black_box(root), &opts).unwrap())
+    });
+    // The hold test of the squeezed power grasp (six gravity directions, two at a time on two
+    // cores) against the part simplified for it, and that simplification (once per scene; the
+    // bench builds the part's query structures afresh each time, since the result is cached).
+    let squeezed = squeeze(&hand, &part, &plan, &g, &opts).0;
+    let mut held = Vec::new();
+    hand.pose_vertices(&squeezed, &mut held);
+    gr.bench_function("hold_mesh_bottle", |b| {
+        b.iter(|| {
+            let fresh = PartShape::new(part.mesh.clone()).unwrap().0;
+            hold_mesh(&fresh).n_faces()
+        })
+    });
+    gr.bench_function("hold_test_power_bottle", |b| {
+        b.iter(|| hold_test_hand(&hand, black_box(&held), &part, 0.3, 0.5).unwrap())
     });
     // The precision plan fitted to the hand, once per scene: a fraction of one autograsp.
     let tripod = grasp_plan(GraspType::Tripod);

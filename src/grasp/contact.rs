@@ -43,6 +43,8 @@ pub struct PartShape {
     pub hi: Point,
     /// Broad phase.
     pub grid: NearGrid,
+    /// The hold test's collision mesh, made on first use ([`super::hold::hold_mesh`]).
+    pub(crate) hold_mesh: std::sync::OnceLock<TriMesh>,
 }
 
 /// Band of the broad phase, mm: queries with a search radius up to this skip the exact
@@ -141,6 +143,7 @@ impl PartShape {
                 lo,
                 hi,
                 grid,
+                hold_mesh: std::sync::OnceLock::new(),
             },
             warnings,
         ))

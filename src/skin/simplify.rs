@@ -68,6 +68,30 @@ pub struct Simplified {
 /// Errors: `target_faces < 4`, a `keep` index out of range, a non-finite coordinate, a face
 /// naming a missing vertex, or a mesh that is not closed, oriented and 2-manifold.
 pub fn simplify_qem(mesh: &TriMesh, target_faces: usize, keep: &[usize]) -> Result<Simplified> {
+    collapse_until(mesh, target_faces, f64::INFINITY, keep)
+}
+
+/// [`simplify_qem`] by error instead of size: collapses, cheapest first, while the cheapest
+/// legal one costs at most `max_cost_mm2` (its quadric: the sum of squared distances of the
+/// kept vertex from the planes of the faces merged into it, Garland & Heckbert section 5, so
+/// `max_cost_mm2 = ε²` keeps every vertex within `ε` of each of those planes). Same inputs,
+/// checks and errors (no keep list needed: pass `&[]`).
+pub fn simplify_qem_within(
+    mesh: &TriMesh,
+    max_cost_mm2: f64,
+    keep: &[usize],
+) -> Result<Simplified> {
+    collapse_until(mesh, 4, max_cost_mm2, keep)
+}
+
+/// The collapse loop of [`simplify_qem`] and [`simplify_qem_within`]: down to `target_faces`
+/// or until the cheapest valid candidate costs more than `max_cost`.
+fn collapse_until(
+    mesh: &TriMesh,
+    target_faces: usize,
+    max_cost: f64,
+    keep: &[usize],
+) -> Result<Simplified> {
     check_input(mesh, target_faces, keep)?;
     let mut c = Collapser::new(mesh, keep);
     let mut n_faces = mesh.n_faces();
@@ -80,6 +104,9 @@ pub fn simplify_qem(mesh: &TriMesh, target_faces: usize, keep: &[usize]) -> Resu
             || c.stamp[v] != cand.stamp_to
         {
             continue; // stale: a neighbourhood changed since it was pushed
+        }
+        if cand.cost > max_cost {
+            break; // the heap pops the cheapest: every candidate left costs more
         }
         if c.legal(u, v) {
             c.collapse(u, v);
@@ -645,6 +672,42 @@ mod tests {
         );
         let v = 4.0 / 3.0 * std::f64::consts::PI * r.powi(3);
         assert!((s.mesh.signed_volume() - v).abs() < 0.05 * v);
+    }
+
+    /// By error: a box of planar grids loses every vertex but its corners at any positive bound
+    /// (flat collapses cost nothing); a sphere keeps its faces within about the bound (the
+    /// quadric bounds each kept vertex's distance from the merged planes), and a looser bound
+    /// leaves fewer faces.
+    #[test]
+    fn simplifying_within_an_error_stops_at_the_error() {
+        let size = [40.0, 25.0, 10.0];
+        let b = box_grid(size, 8);
+        let s = simplify_qem_within(&b, 1e-12, &[]).unwrap();
+        check_result(&b, &s, &[]);
+        assert_eq!(s.mesh.n_faces(), 12);
+        let r = 50.0;
+        let sphere = icosphere(r, 4);
+        let mut faces = sphere.n_faces();
+        for eps in [0.8, 2.0, 5.0] {
+            let s = simplify_qem_within(&sphere, eps * eps, &[]).unwrap();
+            check_result(&sphere, &s, &[]);
+            assert!(
+                s.mesh.n_faces() < faces,
+                "{eps}: {} faces",
+                s.mesh.n_faces()
+            );
+            faces = s.mesh.n_faces();
+            let worst = (0..s.mesh.n_faces())
+                .map(|f| {
+                    let [a, b, c] = s.mesh.corners(f);
+                    r - ((a.coords + b.coords + c.coords) / 3.0).norm()
+                })
+                .fold(0.0, f64::max);
+            assert!(
+                worst < 3.0 * eps,
+                "{eps} mm: a face centre {worst} mm inside"
+            );
+        }
     }
 
     #[test]
