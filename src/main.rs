@@ -168,6 +168,10 @@ enum Command {
         scene: PathBuf,
         #[arg(long)]
         model: Option<PathBuf>,
+        /// Run the scene over many hands: reconstruct output folders, or folders of them (a
+        /// batch output); writes OUT/NAME/ per hand and OUT/population.{json,md,html}.
+        #[arg(long, num_args = 1.., value_name = "DIR", conflicts_with = "model")]
+        models: Vec<PathBuf>,
         #[arg(long)]
         out: PathBuf,
     },
@@ -317,8 +321,17 @@ fn main() -> ExitCode {
             },
         )
         .map(|_| ()),
-        Command::Grasp { scene, model, out } => {
-            cli::grasp(&scene, model.as_deref(), &out).map(|_| ())
+        Command::Grasp {
+            scene,
+            model,
+            models,
+            out,
+        } => {
+            if models.is_empty() {
+                cli::grasp(&scene, model.as_deref(), &out).map(|_| ())
+            } else {
+                cli::grasp_population(&scene, &models, &out).map(|_| ())
+            }
         }
         Command::Track {
             subject_dir,

@@ -993,6 +993,111 @@ fn the_template_cannot_reach_the_procedural_body() {
         "skin to reference mean {} mm: the template reaches the procedural body",
         surface.mean_mm
     );
+    grasp_a_population(&model, tmp.path());
+}
+
+/// `grasp --models` on a population of two copies of the procedural hand (named A and B, given
+/// as the folder holding them): each hand's files in OUT/NAME/ and the same outcome for both
+/// (the same hand, the same seeded search); `population.json` counts them, the page needs
+/// nothing outside itself and shows both pictures and the chart; one hand's grasp.json is the
+/// single-hand command's (timings apart). Two models of one name, or a folder without models,
+/// are refused before any work, naming the folder.
+fn grasp_a_population(model: &Path, tmp: &Path) {
+    let hands = tmp.join("hands");
+    for name in ["A", "B"] {
+        let to = hands.join(name);
+        std::fs::create_dir_all(&to).unwrap();
+        for f in ["link_model.json", "skin.obj"] {
+            std::fs::copy(model.join(f), to.join(f)).unwrap();
+        }
+    }
+    let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/pen.toml");
+    let out = tmp.join("POP");
+    let o = ergohand(&[
+        "grasp",
+        scene.to_str().unwrap(),
+        "--models",
+        hands.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "-q",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let pop: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out.join("population.json")).unwrap()).unwrap();
+    assert_eq!(pop["hands"], 2);
+    let outcomes = pop["outcomes"].as_array().unwrap();
+    assert_eq!(outcomes[0]["name"], "A");
+    assert_eq!(outcomes[1]["name"], "B");
+    for k in [
+        "holds",
+        "force_closure",
+        "epsilon",
+        "contact_area_mm2",
+        "hand_length_mm",
+    ] {
+        assert_eq!(outcomes[0][k], outcomes[1][k], "{k}");
+    }
+    let holding = outcomes.iter().filter(|o| o["holds"] == true).count();
+    assert_eq!(pop["holding"], holding);
+    let html = std::fs::read_to_string(out.join("population.html")).unwrap();
+    assert_eq!(
+        ergohand::validate::report_html::check_self_contained(&html),
+        Ok(3),
+        "two contact pictures and the chart"
+    );
+    // One hand alone, through the single-hand command: the same grasp.
+    let single = tmp.join("SINGLE");
+    let o = ergohand(&[
+        "grasp",
+        scene.to_str().unwrap(),
+        "--model",
+        hands.join("A").to_str().unwrap(),
+        "--out",
+        single.to_str().unwrap(),
+        "-q",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let read = |p: &Path| {
+        let mut v: serde_json::Value =
+            serde_json::from_slice(&std::fs::read(p.join("grasp.json")).unwrap()).unwrap();
+        v.as_object_mut().unwrap().remove("timings_s");
+        v
+    };
+    assert_eq!(read(&out.join("A")), read(&single));
+    // Refused before any work: two models named A; a folder without any model.
+    let other = tmp.join("other/A");
+    std::fs::create_dir_all(&other).unwrap();
+    std::fs::copy(model.join("link_model.json"), other.join("link_model.json")).unwrap();
+    let out2 = tmp.join("POP2");
+    let o = ergohand(&[
+        "grasp",
+        scene.to_str().unwrap(),
+        "--models",
+        hands.join("A").to_str().unwrap(),
+        other.to_str().unwrap(),
+        "--out",
+        out2.to_str().unwrap(),
+    ]);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(error_line(&o).contains("named A"), "{}", error_line(&o));
+    let empty = tmp.join("empty");
+    std::fs::create_dir_all(&empty).unwrap();
+    let o = ergohand(&[
+        "grasp",
+        scene.to_str().unwrap(),
+        "--models",
+        empty.to_str().unwrap(),
+        "--out",
+        out2.to_str().unwrap(),
+    ]);
+    assert_eq!(o.status.code(), Some(1));
+    let line = error_line(&o);
+    assert!(
+        line.contains("empty") && line.contains("link_model.json"),
+        "{line}"
+    );
+    assert!(!out2.exists(), "nothing written on bad input");
 }
 
 /// The library's one-call reconstruction is what the command writes: the same link model

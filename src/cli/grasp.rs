@@ -129,3 +129,135 @@ pub(crate) fn demo_bottle_scene(out: &Path) -> Result<PathBuf> {
     )?;
     Ok(scene)
 }
+
+/// The population page's files, written into the `--out` folder beside one folder per hand.
+pub(crate) const POPULATION_FILES: [&str; 3] =
+    ["population.json", "population.md", "population.html"];
+
+/// The model folders named by `--models`: each path that holds `link_model.json`, else its
+/// subfolders that do (a `batch` output), in name order.
+fn model_folders(paths: &[PathBuf]) -> Result<Vec<PathBuf>> {
+    let mut out = Vec::new();
+    for p in paths {
+        if p.join("link_model.json").is_file() {
+            out.push(p.clone());
+            continue;
+        }
+        let entries = std::fs::read_dir(p).map_err(|e| Error::io(p, e))?;
+        let mut found: Vec<PathBuf> = entries
+            .filter_map(|e| e.ok().map(|e| e.path()))
+            .filter(|d| d.join("link_model.json").is_file())
+            .collect();
+        if found.is_empty() {
+            return Err(Error::input(
+                p,
+                "--models: no link_model.json in this folder or its subfolders; give reconstruct (or batch) output folders",
+            ));
+        }
+        found.sort();
+        out.extend(found);
+    }
+    Ok(out)
+}
+
+/// `ergohand grasp SCENE.toml --models DIR... --out DIR`: the scene with every hand (each a
+/// `reconstruct` folder, or a folder of them), one after the other (each scene is parallel
+/// inside); each hand's `grasp.json`, `grasp.glb` and `contact_map.png` in `out/NAME/`, and
+/// `population.json`, `population.md` and `population.html` in `out`. Every model is read and
+/// every output folder checked before the first scene; a hand on which the scene finds no
+/// grasp is reported as such, not an error.
+pub fn grasp_population(
+    scene: &Path,
+    models: &[PathBuf],
+    out: &Path,
+) -> Result<crate::grasp::population::PopulationSummary> {
+    use crate::grasp::population::{hand_outcome, summarise};
+    let s = scene::read_scene(scene)?;
+    let folders = model_folders(models)?;
+    let names: Vec<String> = folders
+        .iter()
+        .map(|f| {
+            f.file_name()
+                .map(|n| n.to_string_lossy().into_owned())
+                .unwrap_or_else(|| f.display().to_string())
+        })
+        .collect();
+    for (i, n) in names.iter().enumerate() {
+        if let Some(j) = names[..i].iter().position(|m| m == n) {
+            return Err(Error::input(
+                &folders[i],
+                format!(
+                    "--models: two models are named {n} ({} and this one); give folders with distinct names",
+                    folders[j].display()
+                ),
+            ));
+        }
+    }
+    let mut inputs = Inputs::files([scene.to_path_buf(), s.part_file.clone()]);
+    for f in &folders {
+        inputs = inputs.with_model(f);
+    }
+    check_output_dir(out, &POPULATION_FILES, "--out", &inputs)?;
+    for n in &names {
+        check_output_dir(&out.join(n), &OUTPUT_FILES, "--out", &inputs)?;
+    }
+    let hands = folders
+        .iter()
+        .map(|f| load_hand(Some(f), s.side))
+        .collect::<Result<Vec<_>>>()?;
+    let bar = crate::cli::progress(hands.len() as u64, "hands");
+    let mut outcomes = Vec::new();
+    let mut pictures = Vec::new();
+    for ((hand, name), folder) in hands.iter().zip(&names).zip(&folders) {
+        let dir = out.join(name);
+        let o = match run_scene(&s, hand) {
+            Ok(o) => {
+                write_outputs(&o, &dir)?;
+                pictures.push(std::fs::read(dir.join("contact_map.png")).ok());
+                hand_outcome(name, &folder.display().to_string(), hand, Ok(&o.report))
+            }
+            Err(e) => {
+                log::warn!("{}: {e}", folder.display());
+                pictures.push(None);
+                hand_outcome(
+                    name,
+                    &folder.display().to_string(),
+                    hand,
+                    Err(e.to_string()),
+                )
+            }
+        };
+        log::info!(
+            "grasp {name}: {}",
+            if o.holds {
+                "holds".to_string()
+            } else {
+                o.failure.map_or("", |f| f.describe()).to_string()
+            }
+        );
+        outcomes.push(o);
+        bar.inc(1);
+    }
+    bar.finish_and_clear();
+    let summary = summarise(&scene.display().to_string(), s.grasp.name(), outcomes);
+    std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
+    let json = serde_json::to_string_pretty(&summary)
+        .map_err(|e| Error::invalid(format!("population.json: {e}")))?;
+    crate::io::atomic::write_bytes_atomic(&out.join("population.json"), json.as_bytes())?;
+    crate::io::atomic::write_bytes_atomic(
+        &out.join("population.md"),
+        crate::validate::population_report::population_markdown(&summary).as_bytes(),
+    )?;
+    crate::io::atomic::write_bytes_atomic(
+        &out.join("population.html"),
+        crate::validate::population_report::population_html(&summary, &pictures).as_bytes(),
+    )?;
+    log::info!(
+        "grasp: {} of {} hands hold the part, {} in force closure; wrote {}",
+        summary.holding,
+        summary.hands,
+        summary.force_closure,
+        out.join("population.html").display()
+    );
+    Ok(summary)
+}

@@ -22,7 +22,7 @@ pub mod validate;
 
 pub use batch::batch;
 pub use demo::{default_subject_options, demo};
-pub use grasp::grasp;
+pub use grasp::{grasp, grasp_population};
 pub use pose::{pose, pose_with, PoseOptions, PoseSummary};
 pub use reconstruct::{
     reconstruct, reconstruct_fingerprint, reconstruct_prepared, reconstruct_with, skin_options,

@@ -18,6 +18,7 @@ pub mod hold;
 pub mod parts;
 pub mod placement;
 pub mod plan;
+pub mod population;
 pub mod quality;
 pub mod scene;
 

@@ -19,6 +19,7 @@ pub mod motion_accuracy;
 pub mod motion_contact_map;
 pub mod motion_plots;
 pub mod motion_report;
+pub mod population_report;
 pub mod report;
 pub mod report_html;
 pub mod report_md;

@@ -13,13 +13,15 @@ pub struct Cell {
 }
 
 impl Cell {
-    fn new(text: impl Into<String>) -> Cell {
+    /// A plain cell.
+    pub fn new(text: impl Into<String>) -> Cell {
         Cell {
             text: text.into(),
             flag: false,
         }
     }
-    fn flagged(text: impl Into<String>, flag: bool) -> Cell {
+    /// A cell highlighted when `flag`.
+    pub fn flagged(text: impl Into<String>, flag: bool) -> Cell {
         Cell {
             text: text.into(),
             flag,
