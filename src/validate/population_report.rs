@@ -113,7 +113,8 @@ pub fn hand_table(s: &PopulationSummary) -> Table {
 
 /// Epsilon against hand length, one dot per hand (filled: holds; open: does not), as SVG.
 pub fn epsilon_chart_svg(s: &PopulationSummary) -> String {
-    let (w, h, m) = (640.0, 320.0, 48.0);
+    // m: the margins; the left one (left) also holds the y tick labels beside the axis title.
+    let (w, h, m, left) = (640.0, 320.0, 48.0, 72.0);
     let xs: Vec<f64> = s.outcomes.iter().map(|o| o.hand_length_mm).collect();
     let lo = xs.iter().copied().fold(f64::INFINITY, f64::min);
     let hi = xs.iter().copied().fold(f64::NEG_INFINITY, f64::max);
@@ -129,18 +130,18 @@ pub fn epsilon_chart_svg(s: &PopulationSummary) -> String {
         .fold(0.0, f64::max)
         .max(1e-3)
         * 1.1;
-    let x = |v: f64| m + (v - lo) / (hi - lo) * (w - 1.5 * m);
+    let x = |v: f64| left + (v - lo) / (hi - lo) * (w - left - 0.5 * m);
     let y = |v: f64| h - m - v / top * (h - 1.6 * m);
     let mut svg = format!(
         "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"{w}\" height=\"{h}\" viewBox=\"0 0 {w} {h}\" font-family=\"sans-serif\" font-size=\"12\">\
 <rect width=\"{w}\" height=\"{h}\" fill=\"white\"/>\
-<line x1=\"{m}\" y1=\"{b}\" x2=\"{r}\" y2=\"{b}\" stroke=\"#333\"/><line x1=\"{m}\" y1=\"{t}\" x2=\"{m}\" y2=\"{b}\" stroke=\"#333\"/>\
+<line x1=\"{left}\" y1=\"{b}\" x2=\"{r}\" y2=\"{b}\" stroke=\"#333\"/><line x1=\"{left}\" y1=\"{t}\" x2=\"{left}\" y2=\"{b}\" stroke=\"#333\"/>\
 <text x=\"{cx}\" y=\"{ly}\" text-anchor=\"middle\">hand length (mm)</text>\
 <text x=\"14\" y=\"{cy}\" text-anchor=\"middle\" transform=\"rotate(-90 14 {cy})\">epsilon</text>",
         b = h - m,
         r = w - 0.5 * m,
         t = 0.6 * m,
-        cx = (w + 0.5 * m) / 2.0,
+        cx = (w + left - 0.5 * m) / 2.0,
         ly = h - 12.0,
         cy = h / 2.0,
     );
@@ -154,7 +155,7 @@ pub fn epsilon_chart_svg(s: &PopulationSummary) -> String {
         let e = top * k as f64 / 4.0;
         svg.push_str(&format!(
             "<text x=\"{:.1}\" y=\"{:.1}\" text-anchor=\"end\">{e:.3}</text>",
-            m - 4.0,
+            left - 4.0,
             y(e) + 4.0
         ));
     }
