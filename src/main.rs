@@ -75,6 +75,13 @@ enum Command {
         /// Write no grasp motion trials (only the calibration trials).
         #[arg(long)]
         no_motions: bool,
+        /// With --body procedural: the hand of this percentile of hand length and breadth
+        /// (ANSUR II, with --sex) instead of a drawn one, e.g. 5, 50, 95.
+        #[arg(long, requires = "sex")]
+        percentile: Option<f64>,
+        /// The sex whose anthropometry --percentile reads.
+        #[arg(long, value_enum, requires = "percentile")]
+        sex: Option<ergohand::synth::procedural::Sex>,
         /// Replace a non-empty output folder.
         #[arg(long)]
         force: bool,
@@ -248,20 +255,24 @@ fn main() -> ExitCode {
             duration,
             motion_s,
             no_motions,
+            percentile,
+            sex,
             force,
-        } => cli::synth(
-            &cli::synth_options(
-                seed,
-                preset,
-                hand,
-                posture,
-                body,
-                duration,
-                (!no_motions).then_some(motion_s),
-            ),
-            &out,
-            force,
-        ),
+        } => cli::percentile_hand(body, sex, percentile).and_then(|percentile_hand| {
+            let opts = ergohand::synth::SynthOptions {
+                percentile_hand,
+                ..cli::synth_options(
+                    seed,
+                    preset,
+                    hand,
+                    posture,
+                    body,
+                    duration,
+                    (!no_motions).then_some(motion_s),
+                )
+            };
+            cli::synth(&opts, &out, force)
+        }),
         Command::Reconstruct {
             subject_dir,
             out,

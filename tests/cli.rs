@@ -24,6 +24,21 @@ fn synth_writes_a_subject_and_refuses_bad_options() {
     let o = ergohand(&["synth", "--seed", "3", "--out", out_s, "--hand", "middle"]);
     assert!(error_line(&o).contains("--hand"));
 
+    // A percentile hand: only of the procedural body, only strictly between 0 and 100.
+    let pct = |extra: &[&str]| {
+        let mut a = vec!["synth", "--seed", "3", "--out", out_s, "--sex", "female"];
+        a.extend_from_slice(extra);
+        ergohand(&a)
+    };
+    let line = error_line(&pct(&["--percentile", "5"]));
+    assert!(
+        line.contains("--percentile") && line.contains("--body procedural"),
+        "{line}"
+    );
+    let line = error_line(&pct(&["--percentile", "100", "--body", "procedural"]));
+    assert!(line.contains("--percentile 100"), "{line}");
+    assert!(!out.exists(), "nothing written on bad input");
+
     let args = [
         "synth",
         "--seed",

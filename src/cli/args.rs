@@ -4,6 +4,7 @@
 
 use crate::anatomy::Side;
 use crate::skin::pipeline::FitResolution;
+use crate::synth::procedural::Sex;
 use crate::synth::{Body, Posture, Preset};
 use clap::builder::PossibleValue;
 use clap::ValueEnum;
@@ -61,6 +62,19 @@ impl ValueEnum for Body {
             Body::Procedural => "an anatomical hand independent of the template",
         };
         Some(PossibleValue::new(self.name()).help(help))
+    }
+}
+
+impl ValueEnum for Sex {
+    fn value_variants<'a>() -> &'a [Self] {
+        &[Sex::Female, Sex::Male]
+    }
+
+    fn to_possible_value(&self) -> Option<PossibleValue> {
+        Some(match self {
+            Sex::Female => PossibleValue::new("female"),
+            Sex::Male => PossibleValue::new("male"),
+        })
     }
 }
 

@@ -28,7 +28,7 @@ pub use reconstruct::{
     reconstruct, reconstruct_fingerprint, reconstruct_prepared, reconstruct_with, skin_options,
 };
 pub use shape_prior::shape_prior;
-pub use synth::{synth, synth_options};
+pub use synth::{percentile_hand, synth, synth_options};
 pub use template::{template, TemplateOutputs};
 pub use track::{track, TrackSummary};
 pub use validate::{validate, validate_suite, validate_with, Validation};

@@ -27,6 +27,29 @@ pub fn synth_options(
     }
 }
 
+/// `--sex` and `--percentile` of `synth` as the options' percentile hand: only with the
+/// procedural body (the template body's size is drawn), a percentile strictly between 0 and 100.
+pub fn percentile_hand(
+    body: Body,
+    sex: Option<synth::procedural::Sex>,
+    percentile: Option<f64>,
+) -> Result<Option<(synth::procedural::Sex, f64)>> {
+    let (Some(sex), Some(p)) = (sex, percentile) else {
+        return Ok(None);
+    };
+    if body != Body::Procedural {
+        return Err(crate::Error::invalid(
+            "--percentile: a percentile hand needs --body procedural (the template body's size is drawn)",
+        ));
+    }
+    if !(p > 0.0 && p < 100.0) {
+        return Err(crate::Error::invalid(format!(
+            "--percentile {p}: give a percentile between 0 and 100 (e.g. 5, 50, 95)"
+        )));
+    }
+    Ok(Some((sex, p)))
+}
+
 /// `ergohand synth`: simulate a subject and write its folder.
 pub fn synth(opts: &SynthOptions, out: &Path, force: bool) -> Result<()> {
     let t0 = Instant::now();

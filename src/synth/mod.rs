@@ -251,6 +251,11 @@ pub struct SynthOptions {
     /// to `truth.json` when `None`, so that subjects without motions stay byte-identical.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub motion_s: Option<f64>,
+    /// A percentile hand of the procedural body instead of a drawn one: sex and percentile of
+    /// hand length and breadth ([`procedural::Proportions::at_percentile`]). Not written to
+    /// `truth.json` when `None`, so drawn subjects stay byte-identical.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub percentile_hand: Option<(procedural::Sex, f64)>,
 }
 
 fn is_zero(v: &u32) -> bool {
@@ -288,6 +293,7 @@ impl SynthOptions {
             repeat: 0,
             trial_repeat: 0,
             motion_s: None,
+            percentile_hand: None,
         }
     }
 }
@@ -413,7 +419,9 @@ pub fn simulate_with(opts: &SynthOptions, err: &ErrorModel) -> Result<SyntheticS
     let posture = draw_posture(&mut root.fork("posture"), opts.posture);
     let body = match opts.body {
         Body::Template => true_hand::template_body(&template, &root, posture)?,
-        Body::Procedural => procedural::procedural_body(opts.hand, &root, posture)?,
+        Body::Procedural => {
+            procedural::procedural_body(opts.hand, &root, posture, opts.percentile_hand)?
+        }
     };
 
     // 2. Into the lab frame.

@@ -126,7 +126,7 @@ mod tests {
         for f in Finger::ALL {
             posture = posture.with_deg(f.joints()[2], [25.0, 0.0, 0.0]);
         }
-        let hand = procedural_body(Side::Right, &Rng::new(11), posture).unwrap();
+        let hand = procedural_body(Side::Right, &Rng::new(11), posture, None).unwrap();
         let sk = &hand.skeleton;
         let w =
             crate::pose::bone_heat_weights(&hand.skin, sk, &crate::pose::HeatOptions::default())

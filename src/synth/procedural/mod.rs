@@ -76,10 +76,19 @@ pub(crate) fn build_right_hand(
 /// reference posture) added to the relaxed posture; the left hand is the right one mirrored.
 /// Neighbouring fingers the drawn posture would push into each other are spread back
 /// ([`skeleton::keep_fingers_apart`]). The returned posture is the total, relative to the
-/// neutral straight hand.
-pub fn procedural_body(side: Side, root: &Rng, posture: Pose) -> Result<TrueHand> {
+/// neutral straight hand. `percentile`: the proportions of that sex and percentile
+/// ([`Proportions::at_percentile`]) instead of drawn ones.
+pub fn procedural_body(
+    side: Side,
+    root: &Rng,
+    posture: Pose,
+    percentile: Option<(Sex, f64)>,
+) -> Result<TrueHand> {
     let rng = root.fork("procedural");
-    let p = Proportions::sample(&mut rng.fork("proportions"));
+    let p = match percentile {
+        Some((sex, pct)) => Proportions::at_percentile(sex, pct),
+        None => Proportions::sample(&mut rng.fork("proportions")),
+    };
     let bs = skeleton::build_skeleton(&p, &mut rng.fork("skeleton"))?;
     let relaxed = skeleton::relaxed_posture(&mut rng.fork("relaxed"));
     let total = skeleton::keep_fingers_apart(&bs, &p, &skeleton::add_postures(&relaxed, &posture));
@@ -237,8 +246,8 @@ mod tests {
     fn the_left_hand_is_the_mirror_image_of_the_right() {
         let root = Rng::new(9);
         let pose = Pose::zero().with_deg(Joint::IMcp, [5.0, 8.0, 0.0]);
-        let r = procedural_body(Side::Right, &root, pose.clone()).unwrap();
-        let l = procedural_body(Side::Left, &root, pose).unwrap();
+        let r = procedural_body(Side::Right, &root, pose.clone(), None).unwrap();
+        let l = procedural_body(Side::Left, &root, pose, None).unwrap();
         let m = |p: &Point| Point::new(-p.x, p.y, p.z);
         assert_eq!(r.skin.n_faces(), l.skin.n_faces());
         for (a, b) in r.skin.vertices.iter().zip(&l.skin.vertices) {

@@ -21,7 +21,8 @@ use crate::anatomy::Finger;
 use crate::rng::Rng;
 
 /// Sex of the simulated subject (selects the anthropometric means).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
 pub enum Sex {
     Male,
     Female,
@@ -150,15 +151,133 @@ impl Proportions {
         }
     }
 
+    /// The hand of one percentile of `sex` (0 < `percentile` < 100): hand length and breadth
+    /// both at that percentile of the table's normal distributions, every segment and section
+    /// at the table's proportion of them (no residuals): the designer's "5th percentile woman's
+    /// hand".
+    pub fn at_percentile(sex: Sex, percentile: f64) -> Proportions {
+        let t = &TABLE;
+        let s = sex as usize;
+        let z = normal_quantile(percentile / 100.0);
+        let (lm, ls) = t.hand_length[s];
+        let (bm, bs) = t.hand_breadth[s];
+        let hand_length = lm + ls * z;
+        let hand_breadth = bm + bs * z;
+        let breadth_scale = hand_breadth / t.hand_breadth[0].0;
+        let mut segments = [[0.0; 4]; 5];
+        let mut sections = [[0.0; 4]; 5];
+        for f in Finger::ALL {
+            let i = f as usize;
+            for k in 0..4 {
+                segments[i][k] = t.segments[i][k] * hand_length;
+                sections[i][k] = t.finger_sections[i][k] * breadth_scale;
+            }
+            sections[i][1] = sections[i][1].min(sections[i][0] * 0.97);
+            sections[i][3] = sections[i][3].min(sections[i][2] * 0.97);
+        }
+        sections[0][2] = 0.9 * sections[0][0];
+        sections[0][3] = 0.9 * sections[0][1];
+        Proportions {
+            sex,
+            hand_length,
+            hand_breadth,
+            wrist_breadth: hand_breadth * t.wrist_breadth_per_hb,
+            wrist_thickness: hand_breadth * t.wrist_thickness_per_hb,
+            palm_thickness: hand_breadth * t.palm_thickness_per_hb,
+            segments,
+            sections,
+        }
+    }
+
     /// Length of the middle ray from its carpometacarpal joint to the fingertip.
     pub fn middle_ray(&self) -> f64 {
         self.segments[Finger::Middle as usize].iter().sum()
     }
 }
 
+/// The standard normal quantile of `p` (0 < p < 1): Acklam's rational approximation (relative
+/// error below 1.2e-9).
+pub fn normal_quantile(p: f64) -> f64 {
+    const A: [f64; 6] = [
+        -3.969683028665376e1,
+        2.209460984245205e2,
+        -2.759285104469687e2,
+        1.38357751867269e2,
+        -3.066479806614716e1,
+        2.506628277459239,
+    ];
+    const B: [f64; 5] = [
+        -5.447609879822406e1,
+        1.615858368580409e2,
+        -1.556989798598866e2,
+        6.680131188771972e1,
+        -1.328068155288572e1,
+    ];
+    const C: [f64; 6] = [
+        -7.784894002430293e-3,
+        -3.223964580411365e-1,
+        -2.400758277161838,
+        -2.549732539343734,
+        4.374664141464968,
+        2.938163982698783,
+    ];
+    const D: [f64; 4] = [
+        7.784695709041462e-3,
+        3.224671290700398e-1,
+        2.445134137142996,
+        3.754408661907416,
+    ];
+    let tail = |q: f64| {
+        (((((C[0] * q + C[1]) * q + C[2]) * q + C[3]) * q + C[4]) * q + C[5])
+            / ((((D[0] * q + D[1]) * q + D[2]) * q + D[3]) * q + 1.0)
+    };
+    if p < 0.02425 {
+        tail((-2.0 * p.ln()).sqrt())
+    } else if p > 1.0 - 0.02425 {
+        -tail((-2.0 * (1.0 - p).ln()).sqrt())
+    } else {
+        let q = p - 0.5;
+        let r = q * q;
+        (((((A[0] * r + A[1]) * r + A[2]) * r + A[3]) * r + A[4]) * r + A[5]) * q
+            / (((((B[0] * r + B[1]) * r + B[2]) * r + B[3]) * r + B[4]) * r + 1.0)
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Known quantiles of the standard normal, and the percentile hands: the 50th is the
+    /// table's mean, the 5th and 95th lie 1.645 SD either side.
+    #[test]
+    fn percentile_hands_follow_the_table() {
+        for (p, z) in [
+            (0.5, 0.0),
+            (0.95, 1.6448536269514722),
+            (0.05, -1.6448536269514722),
+            (0.975, 1.959963984540054),
+            (0.01, -2.3263478740408408),
+        ] {
+            assert!(
+                (normal_quantile(p) - z).abs() < 1e-8,
+                "{p}: {}",
+                normal_quantile(p)
+            );
+        }
+        for (sex, s) in [(Sex::Male, 0), (Sex::Female, 1)] {
+            let (lm, ls) = TABLE.hand_length[s];
+            let (bm, bs) = TABLE.hand_breadth[s];
+            let mid = Proportions::at_percentile(sex, 50.0);
+            assert!((mid.hand_length - lm).abs() < 1e-9 && (mid.hand_breadth - bm).abs() < 1e-9);
+            let small = Proportions::at_percentile(sex, 5.0);
+            let large = Proportions::at_percentile(sex, 95.0);
+            assert!((small.hand_length - (lm - 1.6448536 * ls)).abs() < 1e-5);
+            assert!((large.hand_breadth - (bm + 1.6448536 * bs)).abs() < 1e-5);
+            // The middle ray sums to the hand length's table fraction.
+            let frac: f64 = TABLE.segments[2].iter().sum();
+            assert!((large.middle_ray() - frac * large.hand_length).abs() < 1e-9);
+        }
+    }
 
     #[test]
     fn draws_follow_the_table() {
