@@ -141,9 +141,9 @@ pub(crate) const HOLD_MESH_TOLERANCE_MM: f64 = 0.05;
 /// on the part) when it has more than [`HOLD_MESH_ABOVE`] triangles, is closed, and no face
 /// centre or edge midpoint of the result lies farther than [`HOLD_MESH_TOLERANCE_MM`] from the
 /// part (checked: the quadric bounds each vertex's distance from the merged faces' planes, not
-/// from the faces); else the part itself. The shipped parts are
-/// marching-tetrahedra meshes of 34-85k triangles, half a square millimetre each: every 1.5 mm
-/// skin ball overlaps dozens of them, and rapier solves a contact per triangle.
+/// from the faces); else the part itself. Why: on a finely triangulated part (the shipped
+/// marching-tetrahedra meshes) every skin ball overlaps dozens of triangles, and rapier solves
+/// a contact per triangle.
 pub fn hold_mesh(part: &PartShape) -> &TriMesh {
     part.hold_mesh.get_or_init(|| {
         let mesh = &part.mesh;
