@@ -26,10 +26,15 @@ pub fn size_table(s: &PopulationSummary) -> Table {
         rows: Vec::new(),
         numeric: vec![false, true, true],
         summary_rows: 1,
-        note: "Thirds of the hands by hand length (the link model's wrist centre to the middle \
-               finger's distal end). Hold: the part stays within 2 mm under gravity from six \
-               directions in rapier."
-            .into(),
+        note: format!(
+            "{} by hand length (the link model's wrist centre to the middle finger's distal \
+             end). Hold: the part stays within 2 mm under gravity from six directions in rapier.",
+            match s.by_size.len() {
+                3 => "Thirds of the hands",
+                2 => "The hands in two halves",
+                _ => "All hands",
+            }
+        ),
     };
     for g in &s.by_size {
         t.rows.push(vec![
@@ -300,6 +305,14 @@ mod tests {
             assert!(html.contains(name) && md.contains(name), "{name}");
         }
         assert!(md.contains("slips in the hold test") && md.contains("T_IP flexion at -20°"));
+        // The size groups' note names how the hands were split.
+        assert!(size_table(&s).note.starts_with("Thirds"));
+        let two = summarise(
+            "pen.toml",
+            "tripod",
+            vec![hand("a", 170.0, true), hand("b", 180.0, true)],
+        );
+        assert!(size_table(&two).note.starts_with("The hands in two halves"));
         // The thumb's area in its column.
         assert!(md.contains("| 120 |"), "{md}");
     }
