@@ -8,8 +8,9 @@ use crate::io::output_paths::{check_output_dir, Inputs};
 use crate::io::Units;
 use std::path::{Path, PathBuf};
 
-/// Write `grasp.json`, `grasp.glb` and `contact_map.png` of an outcome into `out`.
-pub(crate) fn write_outputs(o: &GraspOutcome, out: &Path) -> Result<()> {
+/// Write `grasp.json`, `grasp.glb` and `contact_map.png` of an outcome into `out`; returns
+/// the PNG's bytes (for a page that embeds the picture).
+pub(crate) fn write_outputs(o: &GraspOutcome, out: &Path) -> Result<Vec<u8>> {
     std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
     let json = serde_json::to_string_pretty(&o.report)
         .map_err(|e| Error::invalid(format!("grasp.json: {e}")))?;
@@ -66,7 +67,10 @@ pub(crate) fn write_outputs(o: &GraspOutcome, out: &Path) -> Result<()> {
     let dir = Point::from(com) - centre(&o.hand_mesh.vertices);
     let view = crate::render::View::along(dir, crate::geometry::Vec3::z()).fit_mesh(&both, 0.05);
     let img = crate::render::render_mesh(&both, Some(&cols), &view, 800, 800);
-    img.save_png(out.join("contact_map.png"))
+    let path = out.join("contact_map.png");
+    let png = img.to_png().map_err(|e| e.in_file(&path))?;
+    crate::io::atomic::write_bytes_atomic(&path, &png)?;
+    Ok(png)
 }
 
 /// The files [`write_outputs`] writes into its folder.
@@ -212,8 +216,7 @@ pub fn grasp_population(
         let dir = out.join(name);
         let o = match run_scene(&s, hand) {
             Ok(o) => {
-                write_outputs(&o, &dir)?;
-                pictures.push(std::fs::read(dir.join("contact_map.png")).ok());
+                pictures.push(Some(write_outputs(&o, &dir)?));
                 hand_outcome(name, &folder.display().to_string(), hand, Ok(&o.report))
             }
             Err(e) => {

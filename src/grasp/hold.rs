@@ -155,10 +155,6 @@ pub fn hold_mesh(part: &PartShape) -> &TriMesh {
             return mesh.clone();
         };
         let coarse = coarse.mesh;
-        let off = |p: Point| match part.probe(&p, 1.0) {
-            super::contact::Probe::Hit(d, _, _) => d.abs(),
-            _ => f64::INFINITY,
-        };
         let worst = coarse
             .faces
             .iter()
@@ -171,7 +167,7 @@ pub fn hold_mesh(part: &PartShape) -> &TriMesh {
                     nalgebra::center(&c, &a),
                 ]
             })
-            .map(off)
+            .map(|p| part.distance(&p))
             .fold(0.0, f64::max);
         if worst > HOLD_MESH_TOLERANCE_MM {
             log::debug!(
@@ -400,10 +396,7 @@ mod tests {
                 let [a, b, c] = coarse.corners(f);
                 for w in weights {
                     let q = Point::from(a.coords * w[0] + b.coords * w[1] + c.coords * w[2]);
-                    let d = match part.probe(&q, 1.0) {
-                        super::super::contact::Probe::Hit(d, _, _) => d.abs(),
-                        _ => f64::INFINITY,
-                    };
+                    let d = part.distance(&q);
                     assert!(
                         d <= HOLD_MESH_TOLERANCE_MM + 1e-9,
                         "{p:?} face {f}: {d} mm off"

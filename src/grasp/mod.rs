@@ -617,6 +617,29 @@ mod tests {
         scene::read_scene(&path).unwrap()
     }
 
+    /// A grasp held by its pads: every one of `pads` touches, each of `pressed` is pressed in
+    /// by more than half the squeeze, none of `off` touches, no warning, force closure, and it
+    /// holds in rapier in all six directions.
+    fn assert_held_by_pads(r: &GraspReport, pads: &[&str], pressed: &[&str], off: &[&str]) {
+        let area = |l: &str| r.contact_area_mm2.get(l).copied().unwrap_or(0.0);
+        for pad in pads {
+            assert!(area(pad) > 0.0, "{pad}: {:?}", r.contact_area_mm2);
+        }
+        for pad in pressed {
+            let depth = r.squeeze.depth_mm.get(*pad).copied().unwrap_or(0.0);
+            assert!(
+                depth > autograsp::SQUEEZE_MM / 2.0,
+                "{pad} pressed {depth} mm"
+            );
+        }
+        for l in off {
+            assert_eq!(area(l), 0.0, "{l}: {:?}", r.contact_area_mm2);
+        }
+        assert!(r.warnings.is_empty(), "{:?}", r.warnings);
+        assert!(r.force_closure && r.epsilon > 0.0, "{}", r.epsilon);
+        assert!(r.holds, "{:?}", r.hold_test);
+    }
+
     /// The shipped bottle scene (the 60 mm bottle in a power grasp) reaches force
     /// closure and holds in rapier with the default hand.
     #[test]
@@ -641,19 +664,7 @@ mod tests {
         let mut s = shipped_scene("pen");
         s.grasp = scene::GraspType::Lateral;
         let r = &run_scene(&s, hand()).unwrap().report;
-        let area = |l: &str| r.contact_area_mm2.get(l).copied().unwrap_or(0.0);
-        for pad in ["T_DIST", "I_MID"] {
-            assert!(area(pad) > 0.0, "{pad}: {:?}", r.contact_area_mm2);
-        }
-        let depth = r.squeeze.depth_mm.get("T_DIST").copied().unwrap_or(0.0);
-        assert!(
-            depth > autograsp::SQUEEZE_MM / 2.0,
-            "T_DIST pressed {depth} mm"
-        );
-        assert_eq!(area("PALM"), 0.0, "{:?}", r.contact_area_mm2);
-        assert!(r.warnings.is_empty(), "{:?}", r.warnings);
-        assert!(r.force_closure && r.epsilon > 0.0, "{}", r.epsilon);
-        assert!(r.holds, "{:?}", r.hold_test);
+        assert_held_by_pads(r, &["T_DIST", "I_MID"], &["T_DIST"], &["PALM"]);
     }
 
     /// The pen in a pinch (thumb and index pads, the plan fitted to the hand): held pad to pad,
@@ -665,19 +676,8 @@ mod tests {
         let mut s = shipped_scene("pen");
         s.grasp = scene::GraspType::Pinch;
         let r = &run_scene(&s, hand()).unwrap().report;
-        let area = |l: &str| r.contact_area_mm2.get(l).copied().unwrap_or(0.0);
-        for pad in ["T_DIST", "I_DIST"] {
-            let depth = r.squeeze.depth_mm.get(pad).copied().unwrap_or(0.0);
-            assert!(area(pad) > 0.0, "{pad}: {:?}", r.contact_area_mm2);
-            assert!(
-                depth > autograsp::SQUEEZE_MM / 2.0,
-                "{pad} pressed {depth} mm"
-            );
-        }
-        assert_eq!(area("PALM"), 0.0, "{:?}", r.contact_area_mm2);
-        assert!(r.warnings.is_empty(), "{:?}", r.warnings);
-        assert!(r.force_closure && r.epsilon > 0.0, "{}", r.epsilon);
-        assert!(r.holds, "{:?}", r.hold_test);
+        let pads = ["T_DIST", "I_DIST"];
+        assert_held_by_pads(r, &pads, &pads, &["PALM"]);
     }
 
     /// A part thicker than the lateral grasp's opening (the 38 mm mouse) finds no placement,
@@ -707,20 +707,7 @@ mod tests {
     #[test]
     fn shipped_pen_scene_is_a_tripod_that_holds() {
         let r = &shipped("pen");
-        let area = |l: &str| r.contact_area_mm2.get(l).copied().unwrap_or(0.0);
-        for pad in ["T_DIST", "I_DIST", "M_DIST"] {
-            assert!(area(pad) > 0.0, "{pad}: {:?}", r.contact_area_mm2);
-            let depth = r.squeeze.depth_mm.get(pad).copied().unwrap_or(0.0);
-            assert!(
-                depth > autograsp::SQUEEZE_MM / 2.0,
-                "{pad} pressed {depth} mm"
-            );
-        }
-        for off in ["PALM", "T_META", "T_PROX"] {
-            assert_eq!(area(off), 0.0, "{off}: {:?}", r.contact_area_mm2);
-        }
-        assert!(r.warnings.is_empty(), "{:?}", r.warnings);
-        assert!(r.force_closure && r.epsilon > 0.0, "{}", r.epsilon);
-        assert!(r.holds, "{:?}", r.hold_test);
+        let pads = ["T_DIST", "I_DIST", "M_DIST"];
+        assert_held_by_pads(r, &pads, &pads, &["PALM", "T_META", "T_PROX"]);
     }
 }

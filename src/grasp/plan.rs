@@ -289,13 +289,9 @@ pub fn fit_thumb_to_pads(plan: &GraspPlan, hand: &dyn PosableHand) -> GraspPlan 
     let Some(thumb) = distal_pad(hand, Finger::Thumb) else {
         return plan.clone();
     };
-    let closing: Vec<Finger> = plan.pads[1..]
+    let fingers: Vec<Pad> = plan.pads[1..]
         .iter()
-        .filter_map(|&l| Finger::ALL.into_iter().find(|&f| digit_links(f)[2] == l))
-        .collect();
-    let fingers: Vec<Pad> = closing
-        .iter()
-        .filter_map(|&f| distal_pad(hand, f))
+        .filter_map(|l| distal_pad(hand, l.joint()?.finger()?))
         .collect();
     if fingers.len() + 1 != plan.pads.len() {
         return plan.clone();
@@ -435,11 +431,8 @@ mod tests {
         let (t, n) = distal_pad(hand, Finger::Thumb).unwrap().posed(&tr);
         let fingers: Vec<(Point, Vec3)> = plan.pads[1..]
             .iter()
-            .map(|&l| {
-                let f = Finger::ALL
-                    .into_iter()
-                    .find(|&f| digit_links(f)[2] == l)
-                    .unwrap();
+            .map(|l| {
+                let f = l.joint().and_then(Joint::finger).unwrap();
                 distal_pad(hand, f).unwrap().posed(&tr)
             })
             .collect();

@@ -121,15 +121,42 @@ impl Proportions {
         let (bm, bs) = t.hand_breadth[s];
         let hand_length = lm + ls * (t.size_loading * size + own * rng.normal());
         let hand_breadth = bm + bs * (t.size_loading * size + own * rng.normal());
-        let mut ln = |cv: f64| (cv * rng.normal()).exp();
+        Self::from_dimensions(sex, hand_length, hand_breadth, |cv| {
+            (cv * rng.normal()).exp()
+        })
+    }
+
+    /// The hand of one percentile of `sex` (0 < `percentile` < 100): hand length and breadth
+    /// both at that percentile of the table's normal distributions, every segment and section
+    /// at the table's proportion of them (no residuals): the designer's "5th percentile woman's
+    /// hand".
+    pub fn at_percentile(sex: Sex, percentile: f64) -> Proportions {
+        let t = &TABLE;
+        let s = sex as usize;
+        let z = normal_quantile(percentile / 100.0);
+        let (lm, ls) = t.hand_length[s];
+        let (bm, bs) = t.hand_breadth[s];
+        Self::from_dimensions(sex, lm + ls * z, bm + bs * z, |_| 1.0)
+    }
+
+    /// Segments and sections from hand length and breadth by the table's proportions, each
+    /// times `residual(cv)` of its coefficient of variation (called in a fixed order: per digit,
+    /// each segment then its section; then wrist breadth, wrist thickness, palm thickness).
+    fn from_dimensions(
+        sex: Sex,
+        hand_length: f64,
+        hand_breadth: f64,
+        mut residual: impl FnMut(f64) -> f64,
+    ) -> Proportions {
+        let t = &TABLE;
         let mut segments = [[0.0; 4]; 5];
         let mut sections = [[0.0; 4]; 5];
         let breadth_scale = hand_breadth / t.hand_breadth[0].0;
         for f in Finger::ALL {
             let i = f as usize;
             for k in 0..4 {
-                segments[i][k] = t.segments[i][k] * hand_length * ln(t.segment_cv);
-                sections[i][k] = t.finger_sections[i][k] * breadth_scale * ln(t.section_cv);
+                segments[i][k] = t.segments[i][k] * hand_length * residual(t.segment_cv);
+                sections[i][k] = t.finger_sections[i][k] * breadth_scale * residual(t.section_cv);
             }
             // Thickness never exceeds breadth at a finger joint (elliptic sections).
             sections[i][1] = sections[i][1].min(sections[i][0] * 0.97);
@@ -143,47 +170,9 @@ impl Proportions {
             sex,
             hand_length,
             hand_breadth,
-            wrist_breadth: hand_breadth * t.wrist_breadth_per_hb * ln(t.section_cv),
-            wrist_thickness: hand_breadth * t.wrist_thickness_per_hb * ln(t.section_cv),
-            palm_thickness: hand_breadth * t.palm_thickness_per_hb * ln(t.section_cv),
-            segments,
-            sections,
-        }
-    }
-
-    /// The hand of one percentile of `sex` (0 < `percentile` < 100): hand length and breadth
-    /// both at that percentile of the table's normal distributions, every segment and section
-    /// at the table's proportion of them (no residuals): the designer's "5th percentile woman's
-    /// hand".
-    pub fn at_percentile(sex: Sex, percentile: f64) -> Proportions {
-        let t = &TABLE;
-        let s = sex as usize;
-        let z = normal_quantile(percentile / 100.0);
-        let (lm, ls) = t.hand_length[s];
-        let (bm, bs) = t.hand_breadth[s];
-        let hand_length = lm + ls * z;
-        let hand_breadth = bm + bs * z;
-        let breadth_scale = hand_breadth / t.hand_breadth[0].0;
-        let mut segments = [[0.0; 4]; 5];
-        let mut sections = [[0.0; 4]; 5];
-        for f in Finger::ALL {
-            let i = f as usize;
-            for k in 0..4 {
-                segments[i][k] = t.segments[i][k] * hand_length;
-                sections[i][k] = t.finger_sections[i][k] * breadth_scale;
-            }
-            sections[i][1] = sections[i][1].min(sections[i][0] * 0.97);
-            sections[i][3] = sections[i][3].min(sections[i][2] * 0.97);
-        }
-        sections[0][2] = 0.9 * sections[0][0];
-        sections[0][3] = 0.9 * sections[0][1];
-        Proportions {
-            sex,
-            hand_length,
-            hand_breadth,
-            wrist_breadth: hand_breadth * t.wrist_breadth_per_hb,
-            wrist_thickness: hand_breadth * t.wrist_thickness_per_hb,
-            palm_thickness: hand_breadth * t.palm_thickness_per_hb,
+            wrist_breadth: hand_breadth * t.wrist_breadth_per_hb * residual(t.section_cv),
+            wrist_thickness: hand_breadth * t.wrist_thickness_per_hb * residual(t.section_cv),
+            palm_thickness: hand_breadth * t.palm_thickness_per_hb * residual(t.section_cv),
             segments,
             sections,
         }
