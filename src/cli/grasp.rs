@@ -3,7 +3,9 @@
 use crate::error::{Error, Result};
 use crate::geometry::{Point, TriMesh};
 use crate::grasp::contact::ContactOptions;
-use crate::grasp::{contact_colours, load_hand, run_scene, scene, GraspOutcome, GraspReport};
+use crate::grasp::{
+    contact_colours, load_hand, run_scene, run_scene_on, scene, GraspOutcome, GraspReport,
+};
 use crate::io::output_paths::{check_output_dir, Inputs};
 use crate::io::Units;
 use std::path::{Path, PathBuf};
@@ -209,12 +211,17 @@ pub fn grasp_population(
         .iter()
         .map(|f| load_hand(Some(f), s.side))
         .collect::<Result<Vec<_>>>()?;
+    // One part for every hand: read, cleaned and indexed once, its hold mesh made once.
+    let (part, part_warnings) = crate::grasp::scene_part(&s, &s.part_pose)?;
+    for w in &part_warnings {
+        log::warn!("{w}");
+    }
     let bar = crate::cli::progress(hands.len() as u64, "hands");
     let mut outcomes = Vec::new();
     let mut pictures = Vec::new();
     for ((hand, name), folder) in hands.iter().zip(&names).zip(&folders) {
         let dir = out.join(name);
-        let o = match run_scene(&s, hand) {
+        let o = match run_scene_on(&s, hand, &part, &part_warnings) {
             Ok(o) => {
                 pictures.push(Some(write_outputs(&o, &dir)?));
                 hand_outcome(name, &folder.display().to_string(), hand, Ok(&o.report))

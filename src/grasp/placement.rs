@@ -280,6 +280,10 @@ pub fn placement_search(
             .then(b.0.cmp(&a.0))
     };
     let evaluated = scored.iter().filter(|s| s.is_some()).count();
+    log::debug!(
+        "placement search: screening {:.2} s",
+        started.elapsed().as_secs_f64()
+    );
     let mut ranked: Vec<Score> = scored.into_iter().flatten().collect();
     ranked.sort_by(|a, b| better(b, a));
     let full_sample = skin_sample(hand, 1);
@@ -307,6 +311,11 @@ pub fn placement_search(
         );
     }
     finals.sort_by(|a, b| better(b, a));
+    log::debug!(
+        "placement search: {evaluated} of {candidates} candidates screened, {} finalists, {:.2} s",
+        finals.len(),
+        started.elapsed().as_secs_f64()
+    );
     let best = *finals.first()?;
     Some(PlacementResult {
         approach: approach_of(best.0)?,
