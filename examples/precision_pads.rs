@@ -2,29 +2,16 @@
 //! the plan's own angles against the plan fitted to the hand (`fit_thumb_to_pads`).
 //! `cargo run --release --example precision_pads -- [MODEL_DIR...]` (none: the template).
 use ergohand::anatomy::{Finger, Joint, Side};
-use ergohand::grasp::plan::{distal_pad, fit_thumb_to_pads, grasp_plan, GraspPlan};
+use ergohand::grasp::plan::{fit_thumb_to_pads, grasp_plan, pad_meeting, GraspPlan};
 use ergohand::grasp::scene::GraspType;
 use ergohand::grasp::{PosableHand, SkinnedHand};
-use ergohand::skeleton::forward_kinematics::link_transforms;
-use ergohand::skeleton::Pose;
 
 fn describe(hand: &dyn PosableHand, plan: &GraspPlan) -> String {
-    let tr = link_transforms(
-        hand.skeleton(),
-        &Pose {
-            angles: plan.closed,
-            root: nalgebra::Isometry3::identity(),
-        },
-    );
-    let pad = |f| distal_pad(hand, f).expect("a distal pad").posed(&tr);
-    let (t, i, m) = (pad(Finger::Thumb), pad(Finger::Index), pad(Finger::Middle));
-    let facing = (i.1 + m.1).normalize();
+    let (apart, off) = pad_meeting(hand, plan).expect("distal pads");
     let deg = |j: Joint, d: usize| plan.closed[j.index()][d].to_degrees();
     let [cmc, mcp, ip] = Finger::Thumb.joints();
     format!(
-        "pads {:5.1} mm apart, {:5.1}° from opposition; index [{:.0} {:.0} {:.0}], thumb CMC [{:.0} {:.0} {:.0}] MCP {:.0} IP {:.0}",
-        (t.0 - nalgebra::center(&i.0, &m.0)).norm(),
-        (-t.1.dot(&facing)).clamp(-1.0, 1.0).acos().to_degrees(),
+        "pads {apart:5.1} mm apart, {off:5.1}° from opposition; index [{:.0} {:.0} {:.0}], thumb CMC [{:.0} {:.0} {:.0}] MCP {:.0} IP {:.0}",
         deg(Joint::IMcp, 0),
         deg(Joint::IPip, 0),
         deg(Joint::IDip, 0),

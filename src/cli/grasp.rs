@@ -221,22 +221,19 @@ pub fn grasp_population(
     let mut pictures = Vec::new();
     for ((hand, name), folder) in hands.iter().zip(&names).zip(&folders) {
         let dir = out.join(name);
-        let o = match run_scene_on(&s, hand, &part, &part_warnings) {
-            Ok(o) => {
-                pictures.push(Some(write_outputs(&o, &dir)?));
-                hand_outcome(name, &folder.display().to_string(), hand, Ok(&o.report))
-            }
+        let result = run_scene_on(&s, hand, &part, &part_warnings);
+        pictures.push(match &result {
+            Ok(o) => Some(write_outputs(o, &dir)?),
             Err(e) => {
                 log::warn!("{}: {e}", folder.display());
-                pictures.push(None);
-                hand_outcome(
-                    name,
-                    &folder.display().to_string(),
-                    hand,
-                    Err(e.to_string()),
-                )
+                None
             }
-        };
+        });
+        let report = result
+            .as_ref()
+            .map(|o| &o.report)
+            .map_err(|e| e.to_string());
+        let o = hand_outcome(name, &folder.display().to_string(), hand, report);
         log::info!(
             "grasp {name}: {}",
             if o.holds {

@@ -163,11 +163,9 @@ pub fn hold_mesh(part: &PartShape) -> &TriMesh {
             return mesh.clone();
         };
         let coarse = coarse.mesh;
-        let worst = coarse
-            .faces
-            .iter()
+        let worst = (0..coarse.n_faces())
             .flat_map(|f| {
-                let [a, b, c] = f.map(|i| coarse.vertices[i]);
+                let [a, b, c] = coarse.corners(f);
                 [
                     Point::from((a.coords + b.coords + c.coords) / 3.0),
                     nalgebra::center(&a, &b),

@@ -324,14 +324,7 @@ fn fit_thumb(plan: &mut GraspPlan, hand: &dyn PosableHand, thumb: &Pad, fingers:
         root: Isometry3::identity(),
     };
     let tr = crate::skeleton::forward_kinematics::link_transforms(sk, &closed);
-    let (mut target, mut facing) = (Vec3::zeros(), Vec3::zeros());
-    for p in fingers {
-        let (q, n) = p.posed(&tr);
-        target += q.coords;
-        facing += n;
-    }
-    let target = Point::from(target / fingers.len() as f64);
-    let facing = facing.normalize();
+    let (target, facing) = pads_target(fingers, &tr);
     let joints = Finger::Thumb.joints();
     // The thumb's five degrees of freedom: CMC flexion, abduction, axial rotation, MCP, IP.
     let dofs: [(Joint, usize); 5] = [
@@ -405,6 +398,47 @@ fn fit_thumb(plan: &mut GraspPlan, hand: &dyn PosableHand, thumb: &Pad, fingers:
     best.0
 }
 
+/// Where the thumb's pad should meet the fingers' `fingers` pads posed by `transforms`: the
+/// mean of their points, and the mean of their normals (unit), which the thumb's pad faces.
+fn pads_target(fingers: &[Pad], transforms: &[Isometry3<f64>]) -> (Point, Vec3) {
+    let (mut target, mut facing) = (Vec3::zeros(), Vec3::zeros());
+    for p in fingers {
+        let (q, n) = p.posed(transforms);
+        target += q.coords;
+        facing += n;
+    }
+    (
+        Point::from(target / fingers.len() as f64),
+        facing.normalize(),
+    )
+}
+
+/// How a precision plan's closed posture puts `hand`'s thumb pad on the fingers' pads (what
+/// [`fit_thumb_to_pads`] fits): its distance from their target point (mm) and the angle of its
+/// normal from facing them (degrees, 0 face to face). `None` for a plan without pads beyond the
+/// thumb's, or a digit without a pad.
+pub fn pad_meeting(hand: &dyn PosableHand, plan: &GraspPlan) -> Option<(f64, f64)> {
+    let thumb = distal_pad(hand, Finger::Thumb)?;
+    let fingers = plan
+        .pads
+        .get(1..)
+        .filter(|p| !p.is_empty())?
+        .iter()
+        .map(|l| distal_pad(hand, l.joint()?.finger()?))
+        .collect::<Option<Vec<Pad>>>()?;
+    let closed = crate::skeleton::Pose {
+        angles: plan.closed,
+        root: Isometry3::identity(),
+    };
+    let tr = crate::skeleton::forward_kinematics::link_transforms(hand.skeleton(), &closed);
+    let (target, facing) = pads_target(&fingers, &tr);
+    let (t, n) = thumb.posed(&tr);
+    Some((
+        (t - target).norm(),
+        (-n.dot(&facing)).clamp(-1.0, 1.0).acos().to_degrees(),
+    ))
+}
+
 /// [`grasp_plan`] of `kind` fitted to `hand` ([`fit_thumb_to_pads`] for the precision types).
 pub fn grasp_plan_for(kind: GraspType, hand: &dyn PosableHand) -> GraspPlan {
     fit_thumb_to_pads(&grasp_plan(kind), hand)
@@ -417,33 +451,6 @@ mod tests {
     use crate::grasp::RigidHand;
     use crate::skeleton::forward_kinematics::{link_transforms, posed_skeleton};
     use crate::skeleton::Pose;
-
-    /// Distance (mm) of the thumb's pad point from the fingers' target point and the angle
-    /// (degrees) of its normal from facing them, in the plan's closed posture.
-    fn pad_meeting(hand: &dyn PosableHand, plan: &GraspPlan) -> (f64, f64) {
-        let tr = link_transforms(
-            hand.skeleton(),
-            &Pose {
-                angles: plan.closed,
-                root: Isometry3::identity(),
-            },
-        );
-        let (t, n) = distal_pad(hand, Finger::Thumb).unwrap().posed(&tr);
-        let fingers: Vec<(Point, Vec3)> = plan.pads[1..]
-            .iter()
-            .map(|l| {
-                let f = l.joint().and_then(Joint::finger).unwrap();
-                distal_pad(hand, f).unwrap().posed(&tr)
-            })
-            .collect();
-        let k = fingers.len() as f64;
-        let target = Point::from(fingers.iter().map(|f| f.0.coords).sum::<Vec3>() / k);
-        let facing = fingers.iter().map(|f| f.1).sum::<Vec3>().normalize();
-        (
-            (t - target).norm(),
-            (-n.dot(&facing)).clamp(-1.0, 1.0).acos().to_degrees(),
-        )
-    }
 
     /// The template as a hand whose reference posture is another one: every link moved by the
     /// posture `deg`, the skin rigidly with its dominant link, the joint frames re-made in the
@@ -467,8 +474,8 @@ mod tests {
         for kind in [GraspType::Tripod, GraspType::Pinch, GraspType::Precision] {
             let plan = grasp_plan(kind);
             let fitted = fit_thumb_to_pads(&plan, &h);
-            let (d0, a0) = pad_meeting(&h, &plan);
-            let (d, a) = pad_meeting(&h, &fitted);
+            let (d0, a0) = pad_meeting(&h, &plan).unwrap();
+            let (d, a) = pad_meeting(&h, &fitted).unwrap();
             assert!(
                 d < 4.0,
                 "{kind:?}: thumb pad {d:.1} mm from the fingers' pads"
@@ -505,8 +512,8 @@ mod tests {
         ]);
         let plan = grasp_plan(GraspType::Tripod);
         let fitted = fit_thumb_to_pads(&plan, &h);
-        let (d0, _) = pad_meeting(&h, &plan);
-        let (d, a) = pad_meeting(&h, &fitted);
+        let (d0, _) = pad_meeting(&h, &plan).unwrap();
+        let (d, a) = pad_meeting(&h, &fitted).unwrap();
         assert!(
             d0 > 10.0,
             "the plan's pads are {d0:.1} mm apart on this hand"
