@@ -61,6 +61,18 @@ impl Error {
         Error::input(path, e.message().replace('\n', " ") + &line)
     }
 
+    /// Add where the file was named (e.g. the key of a list that named it) to a content error,
+    /// after its message in parentheses; other errors are returned as they are.
+    pub fn named_by(self, by: impl std::fmt::Display) -> Self {
+        match self {
+            Error::Input { path, msg } => Error::Input {
+                path,
+                msg: format!("{msg} (named by {by})"),
+            },
+            other => other,
+        }
+    }
+
     /// Attach a file to an error raised without one (e.g. a mesh check on a file just read).
     pub fn in_file(self, path: impl AsRef<Path>) -> Self {
         match self {

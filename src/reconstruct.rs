@@ -92,6 +92,13 @@ pub fn inputs_fingerprint(
     opts: &SkinOptions,
     template: &TemplateSource,
 ) -> Result<String> {
+    // A missing trial is named by its key here already, as reading it would.
+    for (key, p) in &subject.trials {
+        let path = subject.dir.join(p);
+        if !path.exists() {
+            return Err(subject.trial_not_found(key, &path));
+        }
+    }
     let files: Vec<PathBuf> = std::iter::once(subject.toml_path())
         .chain(subject.trials.values().map(|p| subject.dir.join(p)))
         .collect();
@@ -217,19 +224,36 @@ fn stages<'p>(
     // What `pose` reuses instead of preparing the template's tet stage again: the node weights
     // of the template's tet mesh, stored in the tet cache beside the mesh itself.
     let nodes = template_tet.tet.n_nodes();
-    if crate::pose::cached_tet_node_weights(template, nodes).is_none() {
-        let w = crate::pose::tet_node_weights(template, &template_tet)?;
-        crate::pose::store_tet_node_weights(template, &w);
-    }
+    let node_weights = match crate::pose::cached_tet_node_weights(template, nodes) {
+        Some(w) => w,
+        None => {
+            let w = crate::pose::tet_node_weights(template, &template_tet)?;
+            crate::pose::store_tet_node_weights(template, &w);
+            w
+        }
+    };
     let t_tet = t2.elapsed().as_secs_f64();
-    // An inverted element is a suspect model: said, never only counted.
+    // An inverted element is a suspect model: said, with where, never only counted.
     let inverted_tets = tet.inverted_count();
     if inverted_tets > 0 {
+        let labels = crate::pose::quality::tet_segments(&tet.tets, &node_weights);
+        let by_link = crate::pose::quality::inverted_by_link(&tet.nodes, &tet.tets, &labels);
         warnings.push(format!(
-            "tet.vtk: {inverted_tets} of {} tetrahedra are inverted (negative volume); the skin \
-             may fold where the template could not follow the subject",
-            tet.n_tets()
+            "tet.vtk: {inverted_tets} of {} tetrahedra are inverted (negative volume) after \
+             untangling ({}); the skin folds there, where the template could not follow the \
+             subject",
+            tet.n_tets(),
+            crate::pose::quality::describe_by_link(&by_link),
         ));
+    }
+    if tet_report.untangle.max_boundary_move_mm > 0.0 {
+        log::debug!(
+            "{}: tet: {} inverted elements untangled to {}, the boundary moved by up to {:.2} mm",
+            subject.name,
+            tet_report.untangle.inverted_before,
+            tet_report.untangle.inverted_after,
+            tet_report.untangle.max_boundary_move_mm
+        );
     }
 
     let t3 = Instant::now();

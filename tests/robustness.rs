@@ -304,3 +304,203 @@ fn batch_reruns_by_content_clamps_jobs_and_cleans_up() {
     assert!(nothing_written(&report));
     assert_eq!(tree_hash(&s), before);
 }
+
+/// How one hostile case ended.
+enum Outcome {
+    /// Exit 1 with this one-line error.
+    Refused(String),
+    /// Exit 0.
+    Done,
+}
+
+/// Run `reconstruct subject --out out -q` with a 60 s limit and check what every case must
+/// hold whatever it is: no panic, no other exit status, no hang, no temporary file left, no
+/// input changed; a refusal is one `error:` line naming `file`, and writes nothing.
+fn hostile_reconstruct(subject: &Path, out: &Path, file: &str, case: &str) -> Outcome {
+    let before = tree_hash(subject);
+    let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_ergohand"))
+        .args([
+            "reconstruct",
+            subject.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+            "-q",
+        ])
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    let started = std::time::Instant::now();
+    let status = loop {
+        if let Some(s) = child.try_wait().unwrap() {
+            break s;
+        }
+        if started.elapsed().as_secs() > 60 {
+            child.kill().unwrap();
+            panic!("{case}: still running after 60 s");
+        }
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    };
+    let mut err = String::new();
+    std::io::Read::read_to_string(&mut child.stderr.take().unwrap(), &mut err).unwrap();
+    assert!(!err.contains("panicked"), "{case}: {err}");
+    assert_eq!(tree_hash(subject), before, "{case}: an input changed");
+    if out.exists() {
+        for e in std::fs::read_dir(out).unwrap() {
+            let name = e.unwrap().file_name().to_string_lossy().into_owned();
+            assert!(!name.ends_with(".tmp"), "{case}: {name} left behind");
+        }
+    }
+    match status.code() {
+        Some(0) => Outcome::Done,
+        Some(1) => {
+            let line = err.lines().last().unwrap_or_default().to_string();
+            assert!(line.starts_with("error: "), "{case}: {err}");
+            assert!(line.contains(file), "{case}: '{file}' not in {line}");
+            assert!(nothing_written(out), "{case}: refused but wrote");
+            Outcome::Refused(line)
+        }
+        other => panic!("{case}: exit {other:?}: {err}"),
+    }
+}
+
+/// The diagonal of the box around a model's skin, mm.
+fn skin_diagonal(model: &Path) -> f64 {
+    let m = ergohand::io::obj::read_obj(&model.join("skin.obj"), ergohand::io::Units::Millimetres)
+        .unwrap();
+    let (mut lo, mut hi) = (m.vertices[0], m.vertices[0]);
+    for p in &m.vertices {
+        lo = lo.inf(p);
+        hi = hi.sup(p);
+    }
+    (hi - lo).norm()
+}
+
+/// Over three hundred generated mistakes in a subject folder, each fed to `reconstruct`:
+/// every value of subject.toml made negative, zero, not a number, infinite, huge, or of the
+/// wrong type; every trial path pointing nowhere, at a non-C3D file, or empty; every line
+/// deleted; every trial cut short at eight places; bytes of the reference trial's header and
+/// parameters changed. Each case ends in a refusal naming the file (and, for a value of
+/// subject.toml, the key), or in a hand whose size is within 20 % of the unharmed subject's.
+#[test]
+fn hostile_subject_folders_are_refused_or_give_a_plausible_hand() {
+    let d = tempfile::tempdir().unwrap();
+    let clean = subject_copy(d.path(), "clean");
+    let clean_out = d.path().join("clean-out");
+    assert!(matches!(
+        hostile_reconstruct(&clean, &clean_out, "", "unharmed"),
+        Outcome::Done
+    ));
+    let size = skin_diagonal(&clean_out);
+    let toml_text = std::fs::read_to_string(clean.join("subject.toml")).unwrap();
+    let s = subject_copy(d.path(), "S");
+    let out = d.path().join("out");
+    let (mut refused, mut done, mut cases) = (0, 0, 0);
+    let mut check = |file: &str, case: String, key: Option<&str>| {
+        if out.exists() {
+            std::fs::remove_dir_all(&out).unwrap();
+        }
+        cases += 1;
+        match hostile_reconstruct(&s, &out, file, &case) {
+            Outcome::Refused(line) => {
+                if let Some(k) = key {
+                    assert!(line.contains(k), "{case}: '{k}' not in {line}");
+                }
+                refused += 1;
+            }
+            Outcome::Done => {
+                let ratio = skin_diagonal(&out) / size;
+                assert!(
+                    (0.8..1.25).contains(&ratio),
+                    "{case}: hand size x{ratio:.2}"
+                );
+                done += 1;
+            }
+        }
+    };
+
+    // subject.toml: every value replaced, every line deleted.
+    let lines: Vec<&str> = toml_text.lines().collect();
+    for (i, line) in lines.iter().enumerate() {
+        let restore = || std::fs::write(s.join("subject.toml"), &toml_text).unwrap();
+        let with_line = |new: &str| {
+            let mut l: Vec<String> = lines.iter().map(|x| x.to_string()).collect();
+            l[i] = new.to_string();
+            std::fs::write(s.join("subject.toml"), l.join("\n")).unwrap();
+        };
+        if !line.trim().is_empty() {
+            with_line("");
+            check(
+                "subject.toml",
+                format!("line {} deleted: {line}", i + 1),
+                None,
+            );
+        }
+        let Some((key, value)) = line.split_once(" = ") else {
+            restore();
+            continue;
+        };
+        let key = key.trim().trim_matches('"');
+        let variants: &[&str] = if value.starts_with('"') && value.contains(".c3d") {
+            &["\"trials/missing.c3d\"", "\"subject.toml\"", "\"\"", "42"]
+        } else if value.starts_with('"') {
+            &["\"\"", "5", "\"up\""]
+        } else {
+            &["-5", "0", "nan", "inf", "1e9", "\"12\""]
+        };
+        for v in variants {
+            with_line(&format!("{key} = {v}"));
+            check("subject.toml", format!("{key} = {v}"), Some(key));
+        }
+        restore();
+    }
+
+    // Every trial cut short.
+    let trials: Vec<PathBuf> = std::fs::read_dir(s.join("trials"))
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .collect();
+    for t in &trials {
+        let bytes = std::fs::read(t).unwrap();
+        let name = t.file_name().unwrap().to_str().unwrap().to_string();
+        for cut in [
+            0,
+            1,
+            100,
+            512,
+            513,
+            1024,
+            2048,
+            bytes.len() / 2,
+            bytes.len() - 1,
+        ] {
+            std::fs::write(t, &bytes[..cut.min(bytes.len())]).unwrap();
+            check(&name, format!("{name} cut at {cut}"), None);
+        }
+        std::fs::write(t, &bytes).unwrap();
+    }
+
+    // Bytes of the reference trial's header and parameter section changed (seeded).
+    let reference = s.join("trials/reference.c3d");
+    let bytes = std::fs::read(&reference).unwrap();
+    let data_start = 512 * (usize::from(u16::from_le_bytes([bytes[16], bytes[17]])) - 1);
+    let mut rng = ergohand::rng::Rng::new(24);
+    for k in 0..40 {
+        let mut b = bytes.clone();
+        let at = (rng.uniform() * data_start as f64) as usize;
+        let to = (rng.uniform() * 256.0) as u8;
+        if b[at] == to {
+            continue;
+        }
+        b[at] = to;
+        std::fs::write(&reference, &b).unwrap();
+        check(
+            "reference.c3d",
+            format!("reference.c3d byte {at} set to {to} (mutation {k})"),
+            None,
+        );
+    }
+    std::fs::write(&reference, &bytes).unwrap();
+    eprintln!("{cases} hostile cases: {refused} refused, {done} gave a plausible hand");
+    assert!(cases >= 300, "{cases} cases");
+}

@@ -80,6 +80,20 @@ pub fn pose_with(
     pose_job(model_dir, pose_arg, out_file, opts, Voice::Command)
 }
 
+/// The warning for a posed tetrahedral mesh that keeps inverted elements after untangling: how
+/// many and in which segments.
+fn inverted_warning(posed: &crate::pose::VolumePose, n_tets: usize) -> Option<String> {
+    (posed.untangle.inverted_after > 0).then(|| {
+        format!(
+            "{} of {n_tets} tetrahedra are inverted (negative volume) after untangling ({}): the \
+             pose folds the skin through itself there; a finite-element solver will refuse the \
+             mesh",
+            posed.untangle.inverted_after,
+            crate::pose::quality::describe_by_link(&posed.inverted_by_link),
+        )
+    })
+}
+
 /// [`pose_with`], speaking with `voice`.
 pub(crate) fn pose_job(
     model_dir: &Path,
@@ -154,6 +168,11 @@ pub(crate) fn pose_job(
         None => None,
         Some(rig) => {
             let posed = rig.pose(&hand, &pose, opts.preserve_volume, &volume_opts)?;
+            if ext.as_deref() != Some("obj") {
+                if let Some(w) = inverted_warning(&posed, rig.tets.len()) {
+                    warnings.push(format!("{}: {w}", out_file.display()));
+                }
+            }
             log::log!(
                 voice.info(),
                 "{}",

@@ -171,7 +171,7 @@ impl TetMesh {
     }
 
     /// Signed volume of tetrahedron `t`, mm³.
-    pub(crate) fn tet_volume(&self, t: usize) -> f64 {
+    pub fn tet_volume(&self, t: usize) -> f64 {
         let [a, b, c, d] = self.corners(t);
         tet_signed_volume(&a, &b, &c, &d)
     }

@@ -4,7 +4,8 @@
 //! `$MeshFormat` (`4.1 0 8`), `$Entities` (one volume entity, tag 1, with its bounding box),
 //! `$Nodes` (one block on that volume: tags 1..n, then coordinates), `$Elements` (one block of
 //! element type 4, the 4-node tetrahedron, tags 1..t, 1-based node tags). Gmsh's tetrahedron
-//! has positive volume with the node order of [`TetMesh`].
+//! has positive volume with the node order of [`TetMesh`]. An `$ElementData` view "signed_volume"
+//! (the file's unit cubed, negative for an inverted element) follows, as Gmsh reads it for viewing.
 
 use super::atomic::write_atomic;
 use super::Units;
@@ -59,7 +60,16 @@ pub fn write_msh(path: &Path, mesh: &TetMesh, units: Units) -> Result<()> {
                 tet[3] + 1
             )?;
         }
-        writeln!(w, "$EndElements")
+        writeln!(w, "$EndElements")?;
+        // Signed, so that an inverted element shows (negative); in the file's unit cubed.
+        writeln!(
+            w,
+            "$ElementData\n1\n\"signed_volume\"\n1\n0.0\n3\n0\n1\n{t}"
+        )?;
+        for e in 0..t {
+            writeln!(w, "{} {:e}", e + 1, mesh.tet_volume(e) * s * s * s)?;
+        }
+        writeln!(w, "$EndElementData")
     })
 }
 
@@ -125,5 +135,19 @@ mod tests {
             assert_eq!(&v[1..], &t.map(|i| i + 1));
         }
         assert_eq!(lines[el + 5], "$EndElements");
+        // The signed volume view, in cm³: the first tetrahedron is the corner one with 10 mm
+        // legs (1000/6 mm³), the second is 7.5 mm below its base (100 · 7.5 / 6 mm³).
+        let data = at("$ElementData");
+        assert_eq!(
+            &lines[data + 1..data + 9],
+            &["1", "\"signed_volume\"", "1", "0.0", "3", "0", "1", "2"]
+        );
+        for (e, want_mm3) in [1000.0 / 6.0, 750.0 / 6.0].iter().enumerate() {
+            let v: Vec<&str> = lines[data + 9 + e].split(' ').collect();
+            assert_eq!(v[0], (e + 1).to_string());
+            let got: f64 = v[1].parse().unwrap();
+            assert!((got - want_mm3 * 1e-3).abs() < 1e-12, "{got}");
+        }
+        assert_eq!(lines[data + 11], "$EndElementData");
     }
 }

@@ -335,6 +335,17 @@ impl Subject {
 
     /// The path of a trial: `dir` joined with its `[trials]` entry. The error names the missing
     /// key.
+    /// The error of a `[trials]` entry `key` whose file `path` does not exist.
+    pub fn trial_not_found(&self, key: &str, path: &Path) -> Error {
+        Error::input(
+            path,
+            format!(
+                "file not found (named by [trials] key '{key}' in {})",
+                self.toml_path().display()
+            ),
+        )
+    }
+
     pub(crate) fn trial_path(&self, kind: TrialKind) -> Result<PathBuf> {
         match self.trials.get(kind.key()) {
             Some(p) => Ok(self.dir.join(p)),
@@ -393,19 +404,18 @@ impl Subject {
         let path = self.trial_path(kind)?;
         let bytes = std::fs::read(&path).map_err(|e| {
             if e.kind() == std::io::ErrorKind::NotFound {
-                Error::input(
-                    &path,
-                    format!(
-                        "file not found (named by [trials] key '{}' in {})",
-                        kind.key(),
-                        self.toml_path().display()
-                    ),
-                )
+                self.trial_not_found(kind.key(), &path)
             } else {
                 Error::io(&path, e)
             }
         })?;
-        let traj = read_c3d_bytes(&bytes, &self.labels, &path)?;
+        let traj = read_c3d_bytes(&bytes, &self.labels, &path).map_err(|e| {
+            e.named_by(format_args!(
+                "[trials] key '{}' in {}",
+                kind.key(),
+                self.toml_path().display()
+            ))
+        })?;
         // A hand's size, whatever the file's POINT:UNITS says, and no marker far off.
         if let Some(units) = crate::mocap::c3d::point_units(&bytes) {
             crate::mocap::plausibility::check_hand_scale(&traj, units)?;

@@ -171,6 +171,42 @@ pub fn finger_penetration(
 pub fn tet_segments(tets: &[[usize; 4]], node_weights: &LinkWeights) -> Vec<usize> {
     tets.iter().map(|q| dominant_of(q, node_weights)).collect()
 }
+/// Where a tetrahedral mesh is inverted: per segment (`labels` from [`tet_segments`]), the
+/// count of elements whose signed volume is not positive, as (link, count), most first.
+pub fn inverted_by_link(
+    nodes: &[Point],
+    tets: &[[usize; 4]],
+    labels: &[usize],
+) -> Vec<(Link, usize)> {
+    let mut count = vec![0usize; Link::ALL.len()];
+    for (t, &l) in tets.iter().zip(labels) {
+        let [a, b, c, d] = t.map(|i| nodes[i]);
+        if (b - a).dot(&(c - a).cross(&(d - a))) <= 0.0 {
+            count[l] += 1;
+        }
+    }
+    let mut out: Vec<(Link, usize)> = Link::ALL
+        .iter()
+        .zip(count)
+        .filter(|e| e.1 > 0)
+        .map(|(l, n)| (*l, n))
+        .collect();
+    out.sort_by_key(|e| std::cmp::Reverse(e.1));
+    out
+}
+
+/// `inverted_by_link`'s result as "12 in PALM, 3 in I_MID" (the first four, then "...").
+pub fn describe_by_link(by_link: &[(Link, usize)]) -> String {
+    let mut s: Vec<String> = by_link
+        .iter()
+        .take(4)
+        .map(|(l, n)| format!("{n} in {l}"))
+        .collect();
+    if by_link.len() > 4 {
+        s.push("...".into());
+    }
+    s.join(", ")
+}
 
 /// Volume of each segment of a tetrahedral mesh with nodes `nodes`: the sum of the signed
 /// volumes of its tetrahedra (`labels` from [`tet_segments`]), over `n_links` links. Being a

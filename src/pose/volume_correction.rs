@@ -28,7 +28,9 @@
 //! The same field then moves the skin's vertices, and the mesh's boundary nodes are placed on
 //! that skin ([`super::pose_tet_nodes`]).
 
-use super::quality::{finger_volume_changes, is_finger_segment, segment_volumes, tet_segments};
+use super::quality::{
+    finger_volume_changes, inverted_by_link, is_finger_segment, segment_volumes, tet_segments,
+};
 use super::skinning::{SkinBinding, Skinning};
 use super::IndividualHand;
 use crate::anatomy::Link;
@@ -38,7 +40,10 @@ use crate::io::Units;
 use crate::skeleton::forward_kinematics::link_transforms;
 use crate::skeleton::{Pose, Skeleton};
 use crate::template::{LinkWeights, TemplateHand};
-use crate::tet::{place_boundary_nodes, SurfaceBinding, TemplateTet};
+use crate::tet::{
+    place_boundary_nodes, untangle, SurfaceBinding, TemplateTet, TetMesh, UntangleOptions,
+    UntangleStats,
+};
 use nalgebra::{DMatrix, DVector, Isometry3};
 use std::path::Path;
 
@@ -258,6 +263,10 @@ pub struct VolumePose {
     pub correction: VolumeCorrection,
     /// Relative volume change of each finger segment of the result, as (link, change).
     pub volume_changes: Vec<(Link, f64)>,
+    /// What untangling the posed mesh's interior did ([`crate::tet::untangle`]).
+    pub untangle: UntangleStats,
+    /// Elements still inverted after it, counted per segment, as (link, count), most first.
+    pub inverted_by_link: Vec<(Link, usize)>,
 }
 
 impl VolumeRig {
@@ -319,6 +328,32 @@ impl VolumeRig {
         let n = Link::ALL.len();
         let (skin, mut nodes, mut correction) = self.skin_and_nodes(hand, pose, correct, opts)?;
         place_boundary_nodes(&self.binding, &skin, &mut nodes)?;
+        // Skinning keeps no element positive where a joint bends hard (the palmar creases of a
+        // fist): the interior nodes give way where that happens.
+        let mut mesh = TetMesh {
+            nodes,
+            tets: self.tets.clone(),
+        };
+        let mut boundary = vec![false; mesh.n_nodes()];
+        for &v in &self.binding.nodes {
+            boundary[v] = true;
+        }
+        let reference: Vec<f64> = self
+            .tets
+            .iter()
+            .map(|t| {
+                let [a, b, c, d] = t.map(|i| self.rest_nodes[i]);
+                (b - a).dot(&(c - a).cross(&(d - a))) / 6.0
+            })
+            .collect();
+        let untangled = untangle(
+            &mut mesh,
+            &boundary,
+            &reference,
+            &UntangleOptions::default(),
+        );
+        let inverted_by_link = inverted_by_link(&mesh.nodes, &mesh.tets, &self.labels);
+        let nodes = mesh.nodes;
         let volume_changes = finger_volume_changes(
             &self.rest_volumes,
             &segment_volumes(&nodes, &self.tets, &self.labels, n),
@@ -334,6 +369,8 @@ impl VolumeRig {
             nodes,
             correction,
             volume_changes,
+            untangle: untangled,
+            inverted_by_link,
         })
     }
 

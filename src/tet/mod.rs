@@ -9,6 +9,9 @@
 //! 3. The interior nodes settle by a volumetric as-rigid-as-possible equilibrium with the
 //!    boundary held, solved with a prefactorised sparse Cholesky ([`elastic`]), in place of the
 //!    paper's Bullet soft-body simulation: [`subject_tet_mesh`].
+//! 4. Where the fitted skin bends harder than the elastic step follows (a skin that folds where
+//!    the template could not follow the subject), the interior nodes of inverted elements are
+//!    moved until the elements are positive again ([`untangle`]).
 //!
 //! Every subject's mesh has the template's nodes and tetrahedra in the same order, so meshes of
 //! different subjects correspond node by node.
@@ -17,11 +20,13 @@ pub mod cache;
 pub mod elastic;
 pub mod stuffing;
 pub mod transfer;
+pub mod untangle;
 
 pub use crate::geometry::tet_mesh::{Stats, TetMesh, TetQuality};
 pub use elastic::{ArapOptions, ElasticSolver, ElasticStats};
 pub use stuffing::{isosurface_stuffing, StuffingParams};
 pub use transfer::{bind_boundary, place_boundary, place_boundary_nodes, SurfaceBinding};
+pub use untangle::{untangle, UntangleOptions, UntangleStats};
 
 use crate::error::{Error, Result};
 use crate::geometry::closest_point::AabbTree;
@@ -55,6 +60,8 @@ pub struct TetReport {
     pub inverted: usize,
     /// How the elastic solve went.
     pub elastic: ElasticStats,
+    /// What the untangling after it did (`inverted_after` is `inverted`).
+    pub untangle: UntangleStats,
 }
 
 /// [`template_tet_mesh_with`] the default [`StuffingParams`].
@@ -158,10 +165,23 @@ pub fn deform(
     }
     let held = place_boundary(binding, fitted_skin)?;
     let (nodes, stats) = solver.solve(&held, &ArapOptions::default())?;
-    let subject = TetMesh {
+    let mut subject = TetMesh {
         nodes,
         tets: template_tet.tets.clone(),
     };
+    let mut boundary = vec![false; subject.n_nodes()];
+    for &v in &binding.nodes {
+        boundary[v] = true;
+    }
+    let reference: Vec<f64> = (0..template_tet.n_tets())
+        .map(|t| template_tet.tet_volume(t))
+        .collect();
+    let untangled = untangle(
+        &mut subject,
+        &boundary,
+        &reference,
+        &UntangleOptions::default(),
+    );
     let tree = AabbTree::new(fitted_skin);
     let boundary_max_distance_mm = binding
         .nodes
@@ -183,6 +203,7 @@ pub fn deform(
         volume_error_percent: 100.0 * (tet_volume_mm3 - skin_volume_mm3) / skin_volume_mm3,
         inverted: subject_quality.inverted,
         elastic: stats,
+        untangle: untangled,
     };
     Ok((subject, report))
 }

@@ -1,0 +1,500 @@
+//! Local untangling of inverted tetrahedra by moving free nodes.
+//!
+//! A mesh whose boundary is held on a skin that bends hard (a fist's palmar creases, a fitted
+//! skin that folds where the template could not follow the subject) can leave elements inverted
+//! after the elastic step or after skinning, since neither keeps a volume positive. Following
+//! the optimisation-based untangling of Freitag & Plassmann (2000, "Local optimization-based
+//! simultaneous mesh untangling and improvement") and Knupp (2001, "Hexahedral and tetrahedral
+//! mesh untangling"), one free node at a time is moved to the position that brings every
+//! element of its star above a target volume:
+//!
+//! `min_x Σ_{t ∈ star} max(0, τ_t − V_t(x))² + μ |x − x₀|²`,
+//!
+//! where `V_t` is linear in the one node's position (`∇_a V = −((c − b) × (d − b)) / 6` for
+//! the corner `a` of `[a, b, c, d]`, and alike for the others by even permutation), so each
+//! node's problem is a convex piecewise quadratic solved exactly by a few Newton steps on its
+//! active set. The small proximal term `μ` keeps a node from drifting once its star is valid.
+//! Sweeps start at the free nodes of the inverted elements and widen to their neighbours when
+//! an element stays inverted (its own nodes are boxed in by the held boundary).
+//!
+//! Nothing moves in a mesh without inverted elements, so a valid mesh is returned unchanged.
+
+use crate::geometry::tet_mesh::TetMesh;
+use crate::geometry::{Point, Vec3};
+use nalgebra::Matrix3;
+use serde::Serialize;
+
+/// Options of [`untangle`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct UntangleOptions {
+    /// The target volume of an element, as a fraction of its reference volume.
+    pub target_fraction: f64,
+    /// Most sweeps over the active nodes at each step of the boundary's reach.
+    pub max_sweeps: usize,
+    /// How far a boundary node may give way at most, mm (0 holds the boundary).
+    pub max_boundary_move_mm: f64,
+}
+
+impl Default for UntangleOptions {
+    fn default() -> Self {
+        UntangleOptions {
+            // A tenth of the reference volume: well clear of zero, yet a compressed element of a
+            // bent joint (often at 30-60 % of its rest volume) is not disturbed.
+            target_fraction: 0.1,
+            max_sweeps: 20,
+            // A fist's palmar creases fold the skinned surface through itself by about this
+            // much; a boundary that gives way further would no longer be the skin.
+            max_boundary_move_mm: 4.0,
+        }
+    }
+}
+
+/// What [`untangle`] did.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
+pub struct UntangleStats {
+    /// Inverted (or flat) elements before.
+    pub inverted_before: usize,
+    /// And after.
+    pub inverted_after: usize,
+    /// Nodes moved.
+    pub nodes_moved: usize,
+    /// Largest move of a node, mm.
+    pub max_move_mm: f64,
+    /// Largest move of a boundary node, mm (0 when the boundary was held throughout).
+    pub max_boundary_move_mm: f64,
+    /// Sweeps run.
+    pub sweeps: usize,
+}
+
+/// Gradient of the signed volume of `tet` with respect to its corner `k` (see the module
+/// documentation).
+fn volume_gradient(nodes: &[Point], tet: &[usize; 4], k: usize) -> Vec3 {
+    // Even permutations that bring corner k first.
+    const PERM: [[usize; 4]; 4] = [[0, 1, 2, 3], [1, 0, 3, 2], [2, 3, 0, 1], [3, 2, 1, 0]];
+    let p = PERM[k];
+    let b = nodes[tet[p[1]]];
+    let c = nodes[tet[p[2]]];
+    let d = nodes[tet[p[3]]];
+    -(c - b).cross(&(d - b)) / 6.0
+}
+
+fn signed_volume(nodes: &[Point], tet: &[usize; 4]) -> f64 {
+    let [a, b, c, d] = tet.map(|i| nodes[i]);
+    (b - a).dot(&(c - a).cross(&(d - a))) / 6.0
+}
+
+/// Move the nodes of `mesh` so that no element has a non-positive volume. The interior nodes
+/// (`boundary[i] == false`) move freely; the boundary is held at first, and only where elements
+/// stay inverted with the interior moved (an element pinned between boundary faces that fold
+/// through each other) may its nodes give way, by at most 0.25, 0.5, 1, 2 mm and then
+/// `opts.max_boundary_move_mm` from where they started, each step tried only when the one
+/// before left an element inverted. `reference` gives each element's reference volume (its
+/// rest or template volume; the absolute value is used), from which the target volume
+/// `opts.target_fraction · |reference|` is set. Elements that are not inverted, and nodes that
+/// are not needed, stay where they are.
+pub fn untangle(
+    mesh: &mut TetMesh,
+    boundary: &[bool],
+    reference: &[f64],
+    opts: &UntangleOptions,
+) -> UntangleStats {
+    let n = mesh.nodes.len();
+    let inverted = |nodes: &[Point]| -> Vec<usize> {
+        (0..mesh.tets.len())
+            .filter(|&t| signed_volume(nodes, &mesh.tets[t]) <= 0.0)
+            .collect()
+    };
+    let mut bad = inverted(&mesh.nodes);
+    let mut stats = UntangleStats {
+        inverted_before: bad.len(),
+        inverted_after: bad.len(),
+        ..Default::default()
+    };
+    if bad.is_empty() {
+        return stats;
+    }
+    // Node -> elements around it.
+    let mut star: Vec<Vec<usize>> = vec![Vec::new(); n];
+    for (t, tet) in mesh.tets.iter().enumerate() {
+        for &v in tet {
+            star[v].push(t);
+        }
+    }
+    let target: Vec<f64> = reference
+        .iter()
+        .map(|v| opts.target_fraction * v.abs())
+        .collect();
+    let start = mesh.nodes.clone();
+    let mut ladder = vec![0.0];
+    let mut r = 0.25;
+    while r < opts.max_boundary_move_mm {
+        ladder.push(r);
+        r *= 2.0;
+    }
+    if opts.max_boundary_move_mm > 0.0 {
+        ladder.push(opts.max_boundary_move_mm);
+    }
+    // How far each node may go from where it started: interior nodes anywhere.
+    let mut reach: Vec<f64> = boundary
+        .iter()
+        .map(|&b| if b { 0.0 } else { f64::INFINITY })
+        .collect();
+    let mut active = vec![false; n];
+    for &boundary_reach in &ladder {
+        if bad.is_empty() {
+            break;
+        }
+        // The nodes of what is inverted and of the elements around it may move (the boundary's
+        // by this step's reach).
+        let around = |bad: &[usize], active: &mut Vec<bool>, reach: &mut Vec<f64>| {
+            for &t in bad {
+                for &v in &mesh.tets[t] {
+                    for &u in star[v].iter().flat_map(|&s| mesh.tets[s].iter()) {
+                        if boundary[u] {
+                            reach[u] = reach[u].max(boundary_reach);
+                        }
+                        if reach[u] > 0.0 {
+                            active[u] = true;
+                        }
+                    }
+                }
+            }
+        };
+        around(&bad, &mut active, &mut reach);
+        let mut unchanged = 0;
+        for _ in 0..opts.max_sweeps {
+            stats.sweeps += 1;
+            let mut order: Vec<usize> = (0..n).filter(|&v| active[v]).collect();
+            // Forward then backward (symmetric Gauss-Seidel).
+            let backward: Vec<usize> = order.iter().rev().copied().collect();
+            order.extend(backward);
+            for &v in &order {
+                relax_node(
+                    &mut mesh.nodes,
+                    &mesh.tets,
+                    &star[v],
+                    &target,
+                    v,
+                    (start[v].coords, reach[v]),
+                );
+            }
+            let now = inverted(&mesh.nodes);
+            // The same elements inverted after three sweeps: this reach is not enough.
+            unchanged = if now == bad { unchanged + 1 } else { 0 };
+            bad = now;
+            if bad.is_empty() || unchanged == 3 {
+                break;
+            }
+            around(&bad, &mut active, &mut reach);
+        }
+    }
+    // What the penalty's compromises leave inverted (a sliver flattened between its
+    // neighbours) is polished by raising the star's smallest volume itself, one node at a time,
+    // accepting only moves that leave fewer inverted elements or a larger smallest volume.
+    for _ in 0..opts.max_sweeps {
+        if bad.is_empty() {
+            break;
+        }
+        let nodes_of_bad: Vec<usize> = bad
+            .iter()
+            .flat_map(|&t| mesh.tets[t].iter().copied())
+            .filter(|&v| reach[v] > 0.0)
+            .collect();
+        for v in nodes_of_bad {
+            raise_smallest_volume(
+                &mut mesh.nodes,
+                &mesh.tets,
+                &star[v],
+                v,
+                (start[v].coords, reach[v]),
+            );
+        }
+        stats.sweeps += 1;
+        let now = inverted(&mesh.nodes);
+        let stalled = now == bad;
+        bad = now;
+        if stalled {
+            break;
+        }
+    }
+    stats.inverted_after = bad.len();
+    for ((a, b), &on_boundary) in mesh.nodes.iter().zip(&start).zip(boundary) {
+        let d = (a - b).norm();
+        if d > 0.0 {
+            stats.nodes_moved += 1;
+            stats.max_move_mm = stats.max_move_mm.max(d);
+            if on_boundary {
+                stats.max_boundary_move_mm = stats.max_boundary_move_mm.max(d);
+            }
+        }
+    }
+    stats
+}
+
+/// One node's problem of the module documentation, solved by Newton steps on its active set.
+/// Where the targets cannot all be met (a node boxed in by a folded boundary), the compromise
+/// can leave an element inverted that smaller targets would clear, so the targets are lowered
+/// tenfold twice and the position with the fewest inverted elements (then the largest smallest
+/// volume) is kept.
+fn relax_node(
+    nodes: &mut [Point],
+    tets: &[[usize; 4]],
+    star: &[usize],
+    target: &[f64],
+    v: usize,
+    (origin, reach): (Vec3, f64),
+) {
+    let terms: Vec<(Vec3, f64, f64)> = star
+        .iter()
+        .map(|&t| {
+            let tet = &tets[t];
+            let k = tet.iter().position(|&x| x == v).unwrap_or(0);
+            let g = volume_gradient(nodes, tet, k);
+            // V(x) = g·x + c, exactly (the volume is linear in one corner).
+            let c = signed_volume(nodes, tet) - g.dot(&nodes[v].coords);
+            (g, c, target[t])
+        })
+        .collect();
+    let x0 = nodes[v].coords;
+    // (inverted count, smallest volume) of a position: fewer inverted first.
+    let score = |x: &Vec3| -> (usize, f64) {
+        let vols = terms.iter().map(|(g, c, _)| g.dot(x) + c);
+        let bad = vols.clone().filter(|v| *v <= 0.0).count();
+        (bad, vols.fold(f64::INFINITY, f64::min))
+    };
+    let meets = |x: &Vec3| terms.iter().all(|(g, c, tau)| g.dot(x) + c >= *tau);
+    if meets(&x0) {
+        return;
+    }
+    let scale = terms.iter().map(|t| t.0.norm_squared()).sum::<f64>() / terms.len() as f64;
+    let mu = 1e-3 * scale;
+    let mut best = (x0, score(&x0));
+    // Where the star is stuck from here, the centre of its other nodes (the position a
+    // star-shaped neighbourhood is valid at) is the last start tried.
+    let centre = {
+        let mut sum = Vec3::zeros();
+        let mut k = 0.0;
+        for &t in star {
+            for &u in &tets[t] {
+                if u != v {
+                    sum += nodes[u].coords;
+                    k += 1.0;
+                }
+            }
+        }
+        sum / k
+    };
+    for (from, lower) in [(x0, 1.0), (x0, 0.1), (x0, 0.01), (centre, 0.1)] {
+        let mut x = newton_on_star(&terms, from, mu, lower);
+        let d = (x - origin).norm();
+        if d > reach {
+            x = origin + (x - origin) * (reach / d);
+        }
+        let s = score(&x);
+        if s.0 < best.1 .0 || (s.0 == best.1 .0 && s.1 > best.1 .1) {
+            best = (x, s);
+        }
+        if s.0 == 0 {
+            break;
+        }
+    }
+    nodes[v] = Point::from(best.0);
+}
+
+/// Move node `v` up the gradient of the smallest volume of its star (a subgradient ascent of
+/// the max-min problem of Freitag & Plassmann), within `reach` of `origin`, accepting a step
+/// only when the star then has fewer inverted elements, or as many and a larger smallest volume.
+fn raise_smallest_volume(
+    nodes: &mut [Point],
+    tets: &[[usize; 4]],
+    star: &[usize],
+    v: usize,
+    (origin, reach): (Vec3, f64),
+) {
+    let terms: Vec<(Vec3, f64)> = star
+        .iter()
+        .map(|&t| {
+            let tet = &tets[t];
+            let k = tet.iter().position(|&x| x == v).unwrap_or(0);
+            let g = volume_gradient(nodes, tet, k);
+            (g, signed_volume(nodes, tet) - g.dot(&nodes[v].coords))
+        })
+        .collect();
+    let score = |x: &Vec3| -> (usize, f64) {
+        let vols = terms.iter().map(|(g, c)| g.dot(x) + c);
+        let bad = vols.clone().filter(|v| *v <= 0.0).count();
+        (bad, vols.fold(f64::INFINITY, f64::min))
+    };
+    let better = |a: (usize, f64), b: (usize, f64)| a.0 < b.0 || (a.0 == b.0 && a.1 > b.1);
+    let mut x = nodes[v].coords;
+    let mut s = score(&x);
+    // Steps from a tenth of the star's typical edge down to a thousandth of it.
+    let edge = terms.iter().map(|(g, _)| g.norm().sqrt()).sum::<f64>() / terms.len() as f64;
+    let mut step = 0.1 * edge;
+    for _ in 0..60 {
+        if s.0 == 0 || step < 1e-3 * edge {
+            break;
+        }
+        let (g, _) = terms
+            .iter()
+            .min_by(|a, b| (a.0.dot(&x) + a.1).total_cmp(&(b.0.dot(&x) + b.1)))
+            .copied()
+            .unwrap_or((Vec3::zeros(), 0.0));
+        let Some(dir) = g.try_normalize(1e-300) else {
+            break;
+        };
+        let mut y = x + dir * step;
+        let d = (y - origin).norm();
+        if d > reach {
+            y = origin + (y - origin) * (reach / d);
+        }
+        let sy = score(&y);
+        if better(sy, s) {
+            x = y;
+            s = sy;
+        } else {
+            step *= 0.5;
+        }
+    }
+    nodes[v] = Point::from(x);
+}
+
+/// Minimise `Σ max(0, lower·τ − g·x − c)² + μ |x − x₀|²` from `x₀`.
+fn newton_on_star(terms: &[(Vec3, f64, f64)], x0: Vec3, mu: f64, lower: f64) -> Vec3 {
+    let cost = |x: &Vec3| -> f64 {
+        terms
+            .iter()
+            .map(|(g, c, tau)| (lower * tau - g.dot(x) - c).max(0.0).powi(2))
+            .sum::<f64>()
+            + mu * (x - x0).norm_squared()
+    };
+    let mut x = x0;
+    for _ in 0..20 {
+        let mut h = Matrix3::identity() * (2.0 * mu);
+        let mut grad = (x - x0) * (2.0 * mu);
+        for (g, c, tau) in terms {
+            let r = lower * tau - g.dot(&x) - c;
+            if r > 0.0 {
+                h += g * g.transpose() * 2.0;
+                grad -= g * (2.0 * r);
+            }
+        }
+        let Some(step) = h.lu().solve(&(-grad)) else {
+            break;
+        };
+        // The function is convex and piecewise quadratic: a full Newton step can only overshoot
+        // across a kink, which a halving line search on the true cost catches.
+        let f = cost(&x);
+        let mut s = 1.0;
+        let mut moved = false;
+        while s > 1e-4 {
+            let y = x + step * s;
+            if cost(&y) < f {
+                x = y;
+                moved = true;
+                break;
+            }
+            s *= 0.5;
+        }
+        if !moved || step.norm() * s < 1e-9 {
+            break;
+        }
+    }
+    x
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The gradient formula against central differences of the signed volume, for every corner.
+    #[test]
+    fn volume_gradient_matches_differences() {
+        let nodes = vec![
+            Point::new(0.1, 0.2, -0.3),
+            Point::new(1.3, 0.1, 0.2),
+            Point::new(0.2, 1.1, 0.4),
+            Point::new(0.3, -0.2, 1.5),
+        ];
+        let tet = [0, 1, 2, 3];
+        for k in 0..4 {
+            let g = volume_gradient(&nodes, &tet, k);
+            for axis in 0..3 {
+                let h = 1e-6;
+                let mut p = nodes.clone();
+                p[k].coords[axis] += h;
+                let mut m = nodes.clone();
+                m[k].coords[axis] -= h;
+                let fd = (signed_volume(&p, &tet) - signed_volume(&m, &tet)) / (2.0 * h);
+                assert!((fd - g[axis]).abs() < 1e-8, "corner {k} axis {axis}");
+            }
+        }
+    }
+
+    /// Eight tetrahedra fanned around one free node inside a held octahedron: the node pushed
+    /// outside the octahedron inverts some of them, and untangling brings it back inside with
+    /// every element above its target; a valid mesh is left untouched.
+    #[test]
+    fn a_free_node_pushed_out_of_its_cage_comes_back() {
+        // Octahedron vertices 0..6, centre 6.
+        let mut nodes = vec![
+            Point::new(1.0, 0.0, 0.0),
+            Point::new(-1.0, 0.0, 0.0),
+            Point::new(0.0, 1.0, 0.0),
+            Point::new(0.0, -1.0, 0.0),
+            Point::new(0.0, 0.0, 1.0),
+            Point::new(0.0, 0.0, -1.0),
+            Point::new(0.0, 0.0, 0.0),
+        ];
+        let faces = [
+            [0, 2, 4],
+            [2, 1, 4],
+            [1, 3, 4],
+            [3, 0, 4],
+            [2, 0, 5],
+            [1, 2, 5],
+            [3, 1, 5],
+            [0, 3, 5],
+        ];
+        let mut tets: Vec<[usize; 4]> = faces.iter().map(|f| [6, f[0], f[1], f[2]]).collect();
+        for t in tets.iter_mut() {
+            if signed_volume(&nodes, t) < 0.0 {
+                t.swap(2, 3);
+            }
+        }
+        let reference: Vec<f64> = tets.iter().map(|t| signed_volume(&nodes, t)).collect();
+        assert!(reference.iter().all(|v| *v > 0.0));
+        let boundary: Vec<bool> = (0..7).map(|i| i < 6).collect();
+        let opts = UntangleOptions::default();
+
+        let mut valid = TetMesh {
+            nodes: nodes.clone(),
+            tets: tets.clone(),
+        };
+        let s = untangle(&mut valid, &boundary, &reference, &opts);
+        assert_eq!((s.inverted_before, s.nodes_moved), (0, 0));
+        assert_eq!(valid.nodes, nodes);
+
+        nodes[6] = Point::new(1.6, 0.4, -0.2);
+        let mut mesh = TetMesh { nodes, tets };
+        let before = mesh.inverted_count();
+        assert!(before > 0);
+        let s = untangle(&mut mesh, &boundary, &reference, &opts);
+        assert_eq!(s.inverted_before, before);
+        assert_eq!(s.inverted_after, 0);
+        assert_eq!(mesh.inverted_count(), 0);
+        // Every element near its target volume (the proximal term keeps the node a little
+        // short of it), the held nodes where they were.
+        for (t, r) in reference.iter().enumerate() {
+            assert!(
+                mesh.tet_volume(t) >= 0.05 * r,
+                "{t}: {}",
+                mesh.tet_volume(t)
+            );
+        }
+        assert_eq!(mesh.nodes[..6], valid.nodes[..6]);
+        // Inside the octahedron: |x| + |y| + |z| < 1.
+        let c = mesh.nodes[6];
+        assert!(c.x.abs() + c.y.abs() + c.z.abs() < 1.0, "{c}");
+    }
+}
