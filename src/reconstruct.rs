@@ -234,7 +234,7 @@ fn stages<'p>(
     };
     let t_tet = t2.elapsed().as_secs_f64();
     // An inverted element is a suspect model: said, with where, never only counted.
-    let inverted_tets = tet.inverted_count();
+    let inverted_tets = tet_report.inverted;
     if inverted_tets > 0 {
         let labels = crate::pose::quality::tet_segments(&tet.tets, &node_weights);
         let by_link = crate::pose::quality::inverted_by_link(&tet.nodes, &tet.tets, &labels);

@@ -366,14 +366,9 @@ fn hostile_reconstruct(subject: &Path, out: &Path, file: &str, case: &str) -> Ou
 
 /// The diagonal of the box around a model's skin, mm.
 fn skin_diagonal(model: &Path) -> f64 {
-    let m = ergohand::io::obj::read_obj(&model.join("skin.obj"), ergohand::io::Units::Millimetres)
-        .unwrap();
-    let (mut lo, mut hi) = (m.vertices[0], m.vertices[0]);
-    for p in &m.vertices {
-        lo = lo.inf(p);
-        hi = hi.sup(p);
-    }
-    (hi - lo).norm()
+    ergohand::io::obj::read_obj(&model.join("skin.obj"), ergohand::io::Units::Millimetres)
+        .unwrap()
+        .diagonal()
 }
 
 /// Over three hundred generated mistakes in a subject folder, each fed to `reconstruct`:

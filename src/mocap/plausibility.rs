@@ -46,7 +46,7 @@ fn median_point(points: &[Point]) -> Option<Point> {
 }
 
 /// Median of `v` (reordered); 0 for an empty slice.
-fn median(v: &mut [f64]) -> f64 {
+pub(crate) fn median(v: &mut [f64]) -> f64 {
     if v.is_empty() {
         return 0.0;
     }

@@ -3,6 +3,7 @@
 
 use crate::anatomy::{Finger, Link};
 use crate::geometry::closest_point::{AabbTree, PseudoNormals};
+use crate::geometry::tet_mesh::tet_signed_volume;
 use crate::geometry::{Point, TriMesh};
 use crate::template::{dominant_links, LinkWeights};
 use std::collections::HashMap;
@@ -181,7 +182,7 @@ pub fn inverted_by_link(
     let mut count = vec![0usize; Link::ALL.len()];
     for (t, &l) in tets.iter().zip(labels) {
         let [a, b, c, d] = t.map(|i| nodes[i]);
-        if (b - a).dot(&(c - a).cross(&(d - a))) <= 0.0 {
+        if tet_signed_volume(&a, &b, &c, &d) <= 0.0 {
             count[l] += 1;
         }
     }

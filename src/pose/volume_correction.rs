@@ -35,14 +35,14 @@ use super::skinning::{SkinBinding, Skinning};
 use super::IndividualHand;
 use crate::anatomy::Link;
 use crate::error::{Error, Result};
+use crate::geometry::tet_mesh::tet_signed_volume;
 use crate::geometry::{Point, TriMesh, Vec3};
 use crate::io::Units;
 use crate::skeleton::forward_kinematics::link_transforms;
 use crate::skeleton::{Pose, Skeleton};
 use crate::template::{LinkWeights, TemplateHand};
 use crate::tet::{
-    place_boundary_nodes, untangle, SurfaceBinding, TemplateTet, TetMesh, UntangleOptions,
-    UntangleStats,
+    place_boundary_nodes, untangle, SurfaceBinding, TemplateTet, UntangleOptions, UntangleStats,
 };
 use nalgebra::{DMatrix, DVector, Isometry3};
 use std::path::Path;
@@ -330,30 +330,26 @@ impl VolumeRig {
         place_boundary_nodes(&self.binding, &skin, &mut nodes)?;
         // Skinning keeps no element positive where a joint bends hard (the palmar creases of a
         // fist): the interior nodes give way where that happens.
-        let mut mesh = TetMesh {
-            nodes,
-            tets: self.tets.clone(),
-        };
-        let mut boundary = vec![false; mesh.n_nodes()];
-        for &v in &self.binding.nodes {
-            boundary[v] = true;
-        }
         let reference: Vec<f64> = self
             .tets
             .iter()
             .map(|t| {
                 let [a, b, c, d] = t.map(|i| self.rest_nodes[i]);
-                (b - a).dot(&(c - a).cross(&(d - a))) / 6.0
+                tet_signed_volume(&a, &b, &c, &d)
             })
             .collect();
         let untangled = untangle(
-            &mut mesh,
-            &boundary,
+            &mut nodes,
+            &self.tets,
+            &self.binding.nodes,
             &reference,
             &UntangleOptions::default(),
         );
-        let inverted_by_link = inverted_by_link(&mesh.nodes, &mesh.tets, &self.labels);
-        let nodes = mesh.nodes;
+        let inverted_by_link = if untangled.inverted_after > 0 {
+            inverted_by_link(&nodes, &self.tets, &self.labels)
+        } else {
+            Vec::new()
+        };
         let volume_changes = finger_volume_changes(
             &self.rest_volumes,
             &segment_volumes(&nodes, &self.tets, &self.labels, n),

@@ -37,6 +37,7 @@ use crate::error::{Error, Result};
 use crate::geometry::{absolute_orientation, Point, TriMesh, Vec3};
 use crate::link::LinkModel;
 use crate::measure::{landmarks_on_skin, measure_dimensions};
+use crate::mocap::plausibility::median;
 use crate::mocap::trajectories::Trajectories;
 use crate::skeleton::forward_kinematics::{linear_blend, posed_skeleton};
 use crate::skeleton::record::{joint_records, skeleton_from_records};
@@ -730,20 +731,14 @@ fn face_check(guard: &[Vec3], fitted: &TriMesh) -> (usize, usize) {
 /// spread over many calipers are the fit's, not a caliper's (a hand the template cannot follow
 /// closely), and are said once, without blaming the values.
 pub(crate) fn caliper_warnings(residuals: &BTreeMap<String, f64>) -> Vec<String> {
-    let median = |mut v: Vec<f64>| -> f64 {
-        if v.is_empty() {
-            return 0.0;
-        }
-        v.sort_by(f64::total_cmp);
-        let n = v.len();
-        if n % 2 == 1 {
-            v[n / 2]
-        } else {
-            0.5 * (v[n / 2 - 1] + v[n / 2])
-        }
-    };
-    let m = median(residuals.values().copied().collect());
-    let sd = 1.4826 * median(residuals.values().map(|r| (r - m).abs()).collect());
+    let m = median(&mut residuals.values().copied().collect::<Vec<f64>>());
+    let sd = 1.4826
+        * median(
+            &mut residuals
+                .values()
+                .map(|r| (r - m).abs())
+                .collect::<Vec<f64>>(),
+        );
     let limit = (4.0 * sd).max(2.0);
     let mut out = Vec::new();
     let mut spread: Vec<(&String, f64)> = Vec::new();

@@ -169,16 +169,13 @@ pub fn deform(
         nodes,
         tets: template_tet.tets.clone(),
     };
-    let mut boundary = vec![false; subject.n_nodes()];
-    for &v in &binding.nodes {
-        boundary[v] = true;
-    }
     let reference: Vec<f64> = (0..template_tet.n_tets())
         .map(|t| template_tet.tet_volume(t))
         .collect();
     let untangled = untangle(
-        &mut subject,
-        &boundary,
+        &mut subject.nodes,
+        &subject.tets,
+        &binding.nodes,
         &reference,
         &UntangleOptions::default(),
     );

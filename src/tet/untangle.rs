@@ -19,7 +19,7 @@
 //!
 //! Nothing moves in a mesh without inverted elements, so a valid mesh is returned unchanged.
 
-use crate::geometry::tet_mesh::TetMesh;
+use crate::geometry::tet_mesh::tet_signed_volume;
 use crate::geometry::{Point, Vec3};
 use nalgebra::Matrix3;
 use serde::Serialize;
@@ -80,11 +80,51 @@ fn volume_gradient(nodes: &[Point], tet: &[usize; 4], k: usize) -> Vec3 {
 
 fn signed_volume(nodes: &[Point], tet: &[usize; 4]) -> f64 {
     let [a, b, c, d] = tet.map(|i| nodes[i]);
-    (b - a).dot(&(c - a).cross(&(d - a))) / 6.0
+    tet_signed_volume(&a, &b, &c, &d)
 }
 
-/// Move the nodes of `mesh` so that no element has a non-positive volume. The interior nodes
-/// (`boundary[i] == false`) move freely; the boundary is held at first, and only where elements
+/// The signed volumes of node `v`'s star as functions of `v`'s position `x`: per element
+/// `(g, c)` with `V(x) = g·x + c`, exactly (the volume is linear in one corner).
+fn star_volumes(
+    nodes: &[Point],
+    tets: &[[usize; 4]],
+    star: &[usize],
+    v: usize,
+) -> Vec<(Vec3, f64)> {
+    star.iter()
+        .map(|&t| {
+            let tet = &tets[t];
+            let k = tet.iter().position(|&x| x == v).unwrap_or(0);
+            let g = volume_gradient(nodes, tet, k);
+            (g, signed_volume(nodes, tet) - g.dot(&nodes[v].coords))
+        })
+        .collect()
+}
+
+/// The star of [`star_volumes`] with its node at `x`: (inverted count, smallest volume).
+fn star_score(lin: &[(Vec3, f64)], x: &Vec3) -> (usize, f64) {
+    let vols = lin.iter().map(|(g, c)| g.dot(x) + c);
+    let bad = vols.clone().filter(|v| *v <= 0.0).count();
+    (bad, vols.fold(f64::INFINITY, f64::min))
+}
+
+/// Whether score `a` is better than `b`: fewer inverted, or as many and a larger smallest volume.
+fn better(a: (usize, f64), b: (usize, f64)) -> bool {
+    a.0 < b.0 || (a.0 == b.0 && a.1 > b.1)
+}
+
+/// `x` pulled back into the ball of radius `reach` around `origin`.
+fn within_reach(x: Vec3, origin: Vec3, reach: f64) -> Vec3 {
+    let d = (x - origin).norm();
+    if d > reach {
+        origin + (x - origin) * (reach / d)
+    } else {
+        x
+    }
+}
+
+/// Move the `nodes` of the mesh of `tets` so that no element has a non-positive volume. The
+/// interior nodes (all but `boundary`) move freely; the boundary is held at first, and only where elements
 /// stay inverted with the interior moved (an element pinned between boundary faces that fold
 /// through each other) may its nodes give way, by at most 0.25, 0.5, 1, 2 mm and then
 /// `opts.max_boundary_move_mm` from where they started, each step tried only when the one
@@ -93,18 +133,23 @@ fn signed_volume(nodes: &[Point], tet: &[usize; 4]) -> f64 {
 /// `opts.target_fraction · |reference|` is set. Elements that are not inverted, and nodes that
 /// are not needed, stay where they are.
 pub fn untangle(
-    mesh: &mut TetMesh,
-    boundary: &[bool],
+    nodes: &mut [Point],
+    tets: &[[usize; 4]],
+    boundary: &[usize],
     reference: &[f64],
     opts: &UntangleOptions,
 ) -> UntangleStats {
-    let n = mesh.nodes.len();
+    let n = nodes.len();
+    let mut on_boundary = vec![false; n];
+    for &v in boundary {
+        on_boundary[v] = true;
+    }
     let inverted = |nodes: &[Point]| -> Vec<usize> {
-        (0..mesh.tets.len())
-            .filter(|&t| signed_volume(nodes, &mesh.tets[t]) <= 0.0)
+        (0..tets.len())
+            .filter(|&t| signed_volume(nodes, &tets[t]) <= 0.0)
             .collect()
     };
-    let mut bad = inverted(&mesh.nodes);
+    let mut bad = inverted(nodes);
     let mut stats = UntangleStats {
         inverted_before: bad.len(),
         inverted_after: bad.len(),
@@ -115,7 +160,7 @@ pub fn untangle(
     }
     // Node -> elements around it.
     let mut star: Vec<Vec<usize>> = vec![Vec::new(); n];
-    for (t, tet) in mesh.tets.iter().enumerate() {
+    for (t, tet) in tets.iter().enumerate() {
         for &v in tet {
             star[v].push(t);
         }
@@ -124,7 +169,7 @@ pub fn untangle(
         .iter()
         .map(|v| opts.target_fraction * v.abs())
         .collect();
-    let start = mesh.nodes.clone();
+    let start = nodes.to_vec();
     let mut ladder = vec![0.0];
     let mut r = 0.25;
     while r < opts.max_boundary_move_mm {
@@ -135,7 +180,7 @@ pub fn untangle(
         ladder.push(opts.max_boundary_move_mm);
     }
     // How far each node may go from where it started: interior nodes anywhere.
-    let mut reach: Vec<f64> = boundary
+    let mut reach: Vec<f64> = on_boundary
         .iter()
         .map(|&b| if b { 0.0 } else { f64::INFINITY })
         .collect();
@@ -148,9 +193,9 @@ pub fn untangle(
         // by this step's reach).
         let around = |bad: &[usize], active: &mut Vec<bool>, reach: &mut Vec<f64>| {
             for &t in bad {
-                for &v in &mesh.tets[t] {
-                    for &u in star[v].iter().flat_map(|&s| mesh.tets[s].iter()) {
-                        if boundary[u] {
+                for &v in &tets[t] {
+                    for &u in star[v].iter().flat_map(|&s| tets[s].iter()) {
+                        if on_boundary[u] {
                             reach[u] = reach[u].max(boundary_reach);
                         }
                         if reach[u] > 0.0 {
@@ -170,15 +215,15 @@ pub fn untangle(
             order.extend(backward);
             for &v in &order {
                 relax_node(
-                    &mut mesh.nodes,
-                    &mesh.tets,
+                    nodes,
+                    tets,
                     &star[v],
                     &target,
                     v,
                     (start[v].coords, reach[v]),
                 );
             }
-            let now = inverted(&mesh.nodes);
+            let now = inverted(nodes);
             // The same elements inverted after three sweeps: this reach is not enough.
             unchanged = if now == bad { unchanged + 1 } else { 0 };
             bad = now;
@@ -197,20 +242,14 @@ pub fn untangle(
         }
         let nodes_of_bad: Vec<usize> = bad
             .iter()
-            .flat_map(|&t| mesh.tets[t].iter().copied())
+            .flat_map(|&t| tets[t].iter().copied())
             .filter(|&v| reach[v] > 0.0)
             .collect();
         for v in nodes_of_bad {
-            raise_smallest_volume(
-                &mut mesh.nodes,
-                &mesh.tets,
-                &star[v],
-                v,
-                (start[v].coords, reach[v]),
-            );
+            raise_smallest_volume(nodes, tets, &star[v], v, (start[v].coords, reach[v]));
         }
         stats.sweeps += 1;
-        let now = inverted(&mesh.nodes);
+        let now = inverted(nodes);
         let stalled = now == bad;
         bad = now;
         if stalled {
@@ -218,12 +257,12 @@ pub fn untangle(
         }
     }
     stats.inverted_after = bad.len();
-    for ((a, b), &on_boundary) in mesh.nodes.iter().zip(&start).zip(boundary) {
+    for ((a, b), &boundary_node) in nodes.iter().zip(&start).zip(&on_boundary) {
         let d = (a - b).norm();
         if d > 0.0 {
             stats.nodes_moved += 1;
             stats.max_move_mm = stats.max_move_mm.max(d);
-            if on_boundary {
+            if boundary_node {
                 stats.max_boundary_move_mm = stats.max_boundary_move_mm.max(d);
             }
         }
@@ -244,24 +283,14 @@ fn relax_node(
     v: usize,
     (origin, reach): (Vec3, f64),
 ) {
-    let terms: Vec<(Vec3, f64, f64)> = star
+    let lin = star_volumes(nodes, tets, star, v);
+    let terms: Vec<(Vec3, f64, f64)> = lin
         .iter()
-        .map(|&t| {
-            let tet = &tets[t];
-            let k = tet.iter().position(|&x| x == v).unwrap_or(0);
-            let g = volume_gradient(nodes, tet, k);
-            // V(x) = g·x + c, exactly (the volume is linear in one corner).
-            let c = signed_volume(nodes, tet) - g.dot(&nodes[v].coords);
-            (g, c, target[t])
-        })
+        .zip(star)
+        .map(|(&(g, c), &t)| (g, c, target[t]))
         .collect();
     let x0 = nodes[v].coords;
-    // (inverted count, smallest volume) of a position: fewer inverted first.
-    let score = |x: &Vec3| -> (usize, f64) {
-        let vols = terms.iter().map(|(g, c, _)| g.dot(x) + c);
-        let bad = vols.clone().filter(|v| *v <= 0.0).count();
-        (bad, vols.fold(f64::INFINITY, f64::min))
-    };
+    let score = |x: &Vec3| star_score(&lin, x);
     let meets = |x: &Vec3| terms.iter().all(|(g, c, tau)| g.dot(x) + c >= *tau);
     if meets(&x0) {
         return;
@@ -285,13 +314,9 @@ fn relax_node(
         sum / k
     };
     for (from, lower) in [(x0, 1.0), (x0, 0.1), (x0, 0.01), (centre, 0.1)] {
-        let mut x = newton_on_star(&terms, from, mu, lower);
-        let d = (x - origin).norm();
-        if d > reach {
-            x = origin + (x - origin) * (reach / d);
-        }
+        let x = within_reach(newton_on_star(&terms, from, mu, lower), origin, reach);
         let s = score(&x);
-        if s.0 < best.1 .0 || (s.0 == best.1 .0 && s.1 > best.1 .1) {
+        if better(s, best.1) {
             best = (x, s);
         }
         if s.0 == 0 {
@@ -311,21 +336,8 @@ fn raise_smallest_volume(
     v: usize,
     (origin, reach): (Vec3, f64),
 ) {
-    let terms: Vec<(Vec3, f64)> = star
-        .iter()
-        .map(|&t| {
-            let tet = &tets[t];
-            let k = tet.iter().position(|&x| x == v).unwrap_or(0);
-            let g = volume_gradient(nodes, tet, k);
-            (g, signed_volume(nodes, tet) - g.dot(&nodes[v].coords))
-        })
-        .collect();
-    let score = |x: &Vec3| -> (usize, f64) {
-        let vols = terms.iter().map(|(g, c)| g.dot(x) + c);
-        let bad = vols.clone().filter(|v| *v <= 0.0).count();
-        (bad, vols.fold(f64::INFINITY, f64::min))
-    };
-    let better = |a: (usize, f64), b: (usize, f64)| a.0 < b.0 || (a.0 == b.0 && a.1 > b.1);
+    let terms = star_volumes(nodes, tets, star, v);
+    let score = |x: &Vec3| star_score(&terms, x);
     let mut x = nodes[v].coords;
     let mut s = score(&x);
     // Steps from a tenth of the star's typical edge down to a thousandth of it.
@@ -343,11 +355,7 @@ fn raise_smallest_volume(
         let Some(dir) = g.try_normalize(1e-300) else {
             break;
         };
-        let mut y = x + dir * step;
-        let d = (y - origin).norm();
-        if d > reach {
-            y = origin + (y - origin) * (reach / d);
-        }
+        let y = within_reach(x + dir * step, origin, reach);
         let sy = score(&y);
         if better(sy, s) {
             x = y;
@@ -406,6 +414,7 @@ fn newton_on_star(terms: &[(Vec3, f64, f64)], x0: Vec3, mu: f64, lower: f64) -> 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::geometry::tet_mesh::TetMesh;
 
     /// The gradient formula against central differences of the signed volume, for every corner.
     #[test]
@@ -464,14 +473,14 @@ mod tests {
         }
         let reference: Vec<f64> = tets.iter().map(|t| signed_volume(&nodes, t)).collect();
         assert!(reference.iter().all(|v| *v > 0.0));
-        let boundary: Vec<bool> = (0..7).map(|i| i < 6).collect();
+        let boundary: Vec<usize> = (0..6).collect();
         let opts = UntangleOptions::default();
 
         let mut valid = TetMesh {
             nodes: nodes.clone(),
             tets: tets.clone(),
         };
-        let s = untangle(&mut valid, &boundary, &reference, &opts);
+        let s = untangle(&mut valid.nodes, &valid.tets, &boundary, &reference, &opts);
         assert_eq!((s.inverted_before, s.nodes_moved), (0, 0));
         assert_eq!(valid.nodes, nodes);
 
@@ -479,7 +488,7 @@ mod tests {
         let mut mesh = TetMesh { nodes, tets };
         let before = mesh.inverted_count();
         assert!(before > 0);
-        let s = untangle(&mut mesh, &boundary, &reference, &opts);
+        let s = untangle(&mut mesh.nodes, &mesh.tets, &boundary, &reference, &opts);
         assert_eq!(s.inverted_before, before);
         assert_eq!(s.inverted_after, 0);
         assert_eq!(mesh.inverted_count(), 0);
