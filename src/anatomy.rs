@@ -90,6 +90,18 @@ impl Finger {
     }
 }
 
+/// Segment lengths as fractions of hand length (distal wrist crease to the tip of the middle
+/// finger), Buchholz, Armstrong & Goldstein 1992: per digit (thumb first) metacarpal (from the
+/// carpometacarpal joint), proximal, middle (the thumb has none: 0) and distal (to the
+/// fingertip) segments, joint centre to joint centre.
+pub const SEGMENT_FRACTIONS: [[f64; 4]; 5] = [
+    [0.251, 0.196, 0.0, 0.158],
+    [0.374, 0.245, 0.143, 0.097],
+    [0.373, 0.266, 0.170, 0.108],
+    [0.336, 0.244, 0.165, 0.107],
+    [0.295, 0.204, 0.117, 0.093],
+];
+
 /// A joint of the hand model (spec section 2), each at the proximal end of its child link.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
 #[allow(missing_docs)]

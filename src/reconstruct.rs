@@ -193,6 +193,9 @@ fn stages<'p>(
     )?;
     let t_link = t0.elapsed().as_secs_f64();
     log::debug!("{}: link model in {t_link:.2} s", subject.name);
+    // A hand no human has is refused before the skin is fitted to it.
+    let who = subject.dir.display().to_string();
+    crate::link::anthropometry::check_link_proportions(&motion.skeleton, &who)?;
 
     let t1 = Instant::now();
     let skin = fit_skin(
@@ -208,10 +211,15 @@ fn stages<'p>(
         .link_model
         .clone()
         .ok_or_else(|| Error::invalid("skin: no section 3.6 link model returned"))?;
-    // The model's warnings: the trials' (samples dropped) before the estimation's.
+    crate::link::anthropometry::check_skin_size(&skin.high, &link_model.skeleton, &who)?;
+    let proportions =
+        crate::link::anthropometry::check_link_proportions(&link_model.skeleton, &who)?;
+    // The model's warnings: the trials' (samples dropped) before the estimation's, then the
+    // proportions'.
     link_model.warnings = trial_warnings
         .into_iter()
         .chain(link_model.warnings)
+        .chain(proportions)
         .collect();
     let mut warnings = link_model.warnings.clone();
     warnings.extend(skin.warnings.iter().cloned());

@@ -305,6 +305,100 @@ fn batch_reruns_by_content_clamps_jobs_and_cleans_up() {
     assert_eq!(tree_hash(&s), before);
 }
 
+/// The files of a model folder but `report.json` (which holds timings) with their hashes, and
+/// the report's input fingerprint.
+fn model_files(out: &Path) -> (BTreeMap<PathBuf, u64>, String) {
+    let mut files: BTreeMap<PathBuf, u64> = tree_hash(out)
+        .into_iter()
+        .map(|(p, h)| (p.strip_prefix(out).unwrap().to_path_buf(), h))
+        .collect();
+    files.remove(Path::new("report.json"));
+    let report: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap();
+    (files, report["inputs_fnv1a"].as_str().unwrap().to_string())
+}
+
+fn reconstruct_args<'a>(s: &'a Path, out: &'a Path, extra: &[&'a str]) -> Vec<&'a str> {
+    let mut a = vec![
+        "reconstruct",
+        s.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ];
+    a.extend_from_slice(extra);
+    a.push("-q");
+    a
+}
+
+/// A run killed while it writes leaves no file that a rerun keeps: the rerun removes the dead
+/// run's temporaries and gives the same model as a run never killed. Two runs into one folder
+/// at once (different options) leave one run's files, never a mix.
+#[test]
+fn killed_and_concurrent_runs_leave_one_runs_files_and_nothing_else() {
+    let d = tempfile::tempdir().unwrap();
+    let s = subject_copy(d.path(), "S");
+    let inputs = tree_hash(&s);
+    let (solo_a, solo_b) = (d.path().join("solo-a"), d.path().join("solo-b"));
+    const B: &[&str] = &["--caliper-rounds", "0"];
+    for (out, extra) in [(&solo_a, &[][..]), (&solo_b, B)] {
+        let o = ergohand(&reconstruct_args(&s, out, extra));
+        assert!(o.status.success(), "{}", stderr(&o));
+    }
+    let (a, b) = (model_files(&solo_a), model_files(&solo_b));
+    assert_ne!(a.0, b.0, "the two option sets give different models");
+
+    // Killed as soon as its first output appears (mid-way through writing the model).
+    let out = d.path().join("killed");
+    let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_ergohand"))
+        .args(reconstruct_args(&s, &out, &[]))
+        .stderr(std::process::Stdio::null())
+        .spawn()
+        .unwrap();
+    let started = std::time::Instant::now();
+    let written = |out: &Path| std::fs::read_dir(out).map_or(0, |r| r.count());
+    while written(&out) == 0 && child.try_wait().unwrap().is_none() {
+        assert!(started.elapsed().as_secs() < 120, "no output after 120 s");
+        std::thread::sleep(std::time::Duration::from_millis(2));
+    }
+    child.kill().unwrap();
+    child.wait().unwrap();
+    // Whatever it left is whole files or hidden temporaries, never a half-written output.
+    for e in std::fs::read_dir(&out).unwrap() {
+        let name = e.unwrap().file_name().to_string_lossy().into_owned();
+        if !name.starts_with('.') {
+            let h = tree_hash(&out)[&out.join(&name)];
+            let whole = name == "report.json" || a.0.get(Path::new(&name)) == Some(&h);
+            assert!(whole, "{name} half-written");
+        }
+    }
+    let o = ergohand(&reconstruct_args(&s, &out, &[]));
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert_eq!(
+        model_files(&out),
+        a,
+        "the rerun's model is the unkilled run's"
+    );
+    for e in std::fs::read_dir(&out).unwrap() {
+        let name = e.unwrap().file_name().to_string_lossy().into_owned();
+        assert!(!name.ends_with(".tmp"), "{name} left behind");
+    }
+
+    // Two runs into one folder at once.
+    let out = d.path().join("both");
+    let spawn = |extra: &[&str]| {
+        std::process::Command::new(env!("CARGO_BIN_EXE_ergohand"))
+            .args(reconstruct_args(&s, &out, extra))
+            .stderr(std::process::Stdio::null())
+            .spawn()
+            .unwrap()
+    };
+    let (mut first, mut second) = (spawn(&[]), spawn(B));
+    assert!(first.wait().unwrap().success() && second.wait().unwrap().success());
+    let both = model_files(&out);
+    assert!(both == a || both == b, "a mix of the two runs' files");
+    assert_eq!(tree_hash(&s), inputs, "an input changed");
+}
+
 /// How one hostile case ended.
 enum Outcome {
     /// Exit 1 with this one-line error.

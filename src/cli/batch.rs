@@ -51,10 +51,6 @@ pub const OUTPUTS: [&str; 7] = crate::io::output_paths::MODEL_FILES;
 /// Threads per core at most: more only adds memory (each thread holds a subject) and switching.
 pub(crate) const JOBS_PER_CORE: usize = 2;
 
-/// A temporary file of [`crate::io::atomic`] older than this is left over from a killed run (a
-/// write takes seconds); younger ones may belong to a run still going and are kept.
-pub(crate) const STALE_TMP_AFTER: std::time::Duration = std::time::Duration::from_secs(600);
-
 /// The summary files written into the batch's output folder.
 pub(crate) const SUMMARY_MD: &str = "batch-summary.md";
 /// See [`SUMMARY_MD`].
@@ -726,11 +722,10 @@ pub(crate) fn clamp_jobs(
 }
 
 /// Remove the temporary files ([`crate::io::atomic`]'s hidden `.NAME.*.tmp`) that a killed run
-/// left in `out` and in the output folders of `subjects`, when older than [`STALE_TMP_AFTER`]
-/// (a younger one may be another run's write in progress). Returns the files removed.
+/// left in `out` and in the output folders of `subjects`: a dead writer's, or any older than
+/// [`crate::io::atomic::STALE_TEMPORARY_AFTER`] ([`crate::io::atomic::is_stale_temporary`]; a
+/// live writer's may be another run's write in progress). Returns the files removed.
 pub(crate) fn remove_stale_temporaries(out: &Path, subjects: &[(String, PathBuf)]) -> Vec<PathBuf> {
-    let now = SystemTime::now();
-    let mut removed = Vec::new();
     // The batch folder, each subject's folder, and each of its tracked motions' folders.
     let motion_folders = |sub: PathBuf| {
         std::fs::read_dir(sub.join(MOTIONS_DIR))
@@ -744,26 +739,10 @@ pub(crate) fn remove_stale_temporaries(out: &Path, subjects: &[(String, PathBuf)
     };
     let folders = std::iter::once(out.to_path_buf())
         .chain(subjects.iter().flat_map(|s| motion_folders(out.join(&s.0))));
-    for dir in folders {
-        let Ok(entries) = std::fs::read_dir(&dir) else {
-            continue;
-        };
-        for e in entries.flatten() {
-            let name = e.file_name().to_string_lossy().into_owned();
-            if !(name.starts_with('.') && name.ends_with(".tmp")) {
-                continue;
-            }
-            let Ok(meta) = e.metadata() else { continue };
-            let old = meta
-                .modified()
-                .ok()
-                .and_then(|m| now.duration_since(m).ok())
-                .is_some_and(|age| age >= STALE_TMP_AFTER);
-            if meta.is_file() && old && std::fs::remove_file(e.path()).is_ok() {
-                removed.push(e.path());
-            }
-        }
-    }
+    let mut removed: Vec<PathBuf> = folders
+        .flat_map(|dir| crate::io::atomic::stale_temporaries_in(&dir))
+        .filter(|p| std::fs::remove_file(p).is_ok())
+        .collect();
     removed.sort();
     removed
 }
@@ -926,8 +905,14 @@ mod tests {
         for p in [&stale, &fresh, &other] {
             std::fs::write(p, b"half").unwrap();
         }
-        set_mtime(&stale, SystemTime::now() - 2 * STALE_TMP_AFTER);
-        set_mtime(&other, SystemTime::now() - 2 * STALE_TMP_AFTER);
+        set_mtime(
+            &stale,
+            SystemTime::now() - 2 * crate::io::atomic::STALE_TEMPORARY_AFTER,
+        );
+        set_mtime(
+            &other,
+            SystemTime::now() - 2 * crate::io::atomic::STALE_TEMPORARY_AFTER,
+        );
         let removed = remove_stale_temporaries(out, &[("S1".into(), out.join("S1"))]);
         assert_eq!(removed, vec![stale.clone()]);
         assert!(!stale.exists() && fresh.exists() && other.exists());

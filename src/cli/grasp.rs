@@ -13,7 +13,7 @@ use std::path::{Path, PathBuf};
 /// Write `grasp.json`, `grasp.glb` and `contact_map.png` of an outcome into `out`; returns
 /// the PNG's bytes (for a page that embeds the picture).
 pub(crate) fn write_outputs(o: &GraspOutcome, out: &Path) -> Result<Vec<u8>> {
-    std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
+    let _held = crate::io::atomic::FolderLock::acquire(out)?;
     let json = serde_json::to_string_pretty(&o.report)
         .map_err(|e| Error::invalid(format!("grasp.json: {e}")))?;
     crate::io::atomic::write_bytes_atomic(&out.join("grasp.json"), json.as_bytes())?;
@@ -247,7 +247,7 @@ pub fn grasp_population(
     }
     bar.finish_and_clear();
     let summary = summarise(&scene.display().to_string(), s.grasp.name(), outcomes);
-    std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
+    let _held = crate::io::atomic::FolderLock::acquire(out)?;
     let json = serde_json::to_string_pretty(&summary)
         .map_err(|e| Error::invalid(format!("population.json: {e}")))?;
     crate::io::atomic::write_bytes_atomic(&out.join("population.json"), json.as_bytes())?;

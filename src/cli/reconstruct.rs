@@ -1,7 +1,7 @@
 //! `ergohand reconstruct`: the stages of the seed paper run on one subject folder, and the
 //! model folder they write (spec section 3).
 
-use super::{create_dir, Voice};
+use super::Voice;
 use crate::error::{Error, Result};
 use crate::io::output_paths::{check_output_dir, Inputs, MODEL_FILES};
 use crate::io::{atomic, obj, Units};
@@ -174,7 +174,8 @@ pub(crate) fn reconstruct_job(
 /// The model folder (spec section 3): the seven files of [`MODEL_FILES`], each written to a
 /// temporary file and renamed, `report.json` last.
 fn write_model(r: &crate::reconstruct::Reconstruction, out: &Path) -> Result<()> {
-    create_dir(out)?;
+    // One run's files, never a mix of two runs into the same folder.
+    let _held = atomic::FolderLock::acquire(out)?;
     r.link_model.write(&out.join("link_model.json"))?;
     obj::write_obj(
         &out.join("skin_low.obj"),

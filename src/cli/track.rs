@@ -247,7 +247,7 @@ pub(crate) fn track_job(
         .unwrap_or_default();
     let mut file = tracked.motion_file(&kin, records);
     file.warnings = warnings.clone();
-    std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
+    let _held = crate::io::atomic::FolderLock::acquire(out)?;
     let written = out.join("motion.json");
     let (json, glb_written) = rayon::join(
         || file.write(&written),

@@ -18,7 +18,10 @@
 //! * [`estimate`]: the whole link model of a subject from its trials, with diagnostics.
 //! * [`level_cues`]: a hinge's level along its axis weighted over several cues.
 //! * [`model`]: the link model as data, and `link_model.json`.
+//! * [`anthropometry`]: the link model's proportions against published anthropometry (a
+//!   plausibility gate).
 
+pub mod anthropometry;
 pub mod axis_fit;
 pub mod estimate;
 pub mod functional;

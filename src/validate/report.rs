@@ -21,7 +21,7 @@ pub use super::model_inputs::{check_reference_scale, REFERENCE_SCALE_RATIO};
 use super::subject_validation::{JointFitSummary, ReportFigures, SubjectValidation};
 use super::surface_regions::{model_regions, surface_regions, SurfaceRegions};
 use crate::anatomy::landmark_names;
-use crate::error::{Error, Result};
+use crate::error::Result;
 use crate::io::atomic::write_bytes_atomic;
 use crate::measure::landmarks_on_skin;
 use crate::mocap::subject::TrialKind;
@@ -69,7 +69,7 @@ pub fn validate_subject_with(
         &mut t,
     );
 
-    std::fs::create_dir_all(report).map_err(|e| Error::io(report, e))?;
+    let _held = crate::io::atomic::FolderLock::acquire(report)?;
     let map_pictures = match &measured.map {
         Some(map) => {
             let p = error_map_pictures(

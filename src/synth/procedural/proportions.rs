@@ -59,13 +59,7 @@ pub(crate) const TABLE: Table = Table {
     hand_length: [(194.0, 9.0), (180.0, 9.0)],
     hand_breadth: [(90.0, 4.0), (79.0, 4.0)],
     size_loading: 0.78,
-    segments: [
-        [0.251, 0.196, 0.0, 0.158],
-        [0.374, 0.245, 0.143, 0.097],
-        [0.373, 0.266, 0.170, 0.108],
-        [0.336, 0.244, 0.165, 0.107],
-        [0.295, 0.204, 0.117, 0.093],
-    ],
+    segments: crate::anatomy::SEGMENT_FRACTIONS,
     finger_sections: [
         [22.0, 19.5, 0.0, 0.0],
         [20.8, 19.0, 18.0, 15.5],
