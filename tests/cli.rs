@@ -888,6 +888,82 @@ fn template_writes_mesh_spec_and_picture() {
     m.check_closed_manifold().unwrap();
 }
 
+/// `view.html` beside a grasp's files: its data (read as the page reads it) gives the grasp's
+/// own figures and areas, its GLB is `grasp.glb` byte for byte, and the hand's frame is a
+/// right-handed set of unit vectors.
+fn view_page_holds_the_grasp(out: &Path, r: &serde_json::Value) {
+    let html = std::fs::read_to_string(out.join("view.html")).unwrap();
+    let between = |start: &str| {
+        let a = html.find(start).unwrap() + start.len();
+        &html[a..a + html[a..].find("</script>").unwrap()]
+    };
+    let data: serde_json::Value = serde_json::from_str(between(
+        "<script id=\"ergohand-view-data\" type=\"application/json\">",
+    ))
+    .unwrap();
+    let fact = |k: &str| {
+        data["facts"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .find(|f| f[0] == k)
+            .unwrap_or_else(|| panic!("fact {k}"))[1]
+            .as_str()
+            .unwrap()
+            .to_string()
+    };
+    assert_eq!(fact("force closure"), "yes");
+    let eps: f64 = fact("epsilon").parse().unwrap();
+    assert!((eps - r["epsilon"].as_f64().unwrap()).abs() < 1e-4);
+    assert!(fact("holds").starts_with("yes: 6 of 6"));
+    let rows = data["tables"][0]["rows"].as_array().unwrap();
+    for row in rows {
+        let a: f64 = row[1].as_str().unwrap().parse().unwrap();
+        let want = r["contact_area_mm2"][row[0].as_str().unwrap()]
+            .as_f64()
+            .unwrap();
+        assert!((a - want).abs() <= 0.05, "{row}");
+    }
+    assert_eq!(data["part_nodes"][0], "part");
+    let glb = between("<script id=\"ergohand-glb-0\" type=\"application/octet-stream\">");
+    let decoded = base64_decode(glb);
+    assert_eq!(decoded, std::fs::read(out.join("grasp.glb")).unwrap());
+    let f = &data["frame"];
+    let v = |k: &str| -> [f64; 3] { std::array::from_fn(|i| f[k][i].as_f64().unwrap()) };
+    let (d, ra, di) = (v("dorsal"), v("radial"), v("distal"));
+    let dot = |a: [f64; 3], b: [f64; 3]| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+    for (a, b) in [(d, ra), (d, di), (ra, di)] {
+        assert!(dot(a, b).abs() < 1e-9);
+    }
+    for a in [d, ra, di] {
+        assert!((dot(a, a) - 1.0).abs() < 1e-9);
+    }
+}
+
+/// Standard base64 decoding (an independent reader of the page's GLB).
+fn base64_decode(text: &str) -> Vec<u8> {
+    let val = |c: u8| match c {
+        b'A'..=b'Z' => c - b'A',
+        b'a'..=b'z' => c - b'a' + 26,
+        b'0'..=b'9' => c - b'0' + 52,
+        b'+' => 62,
+        b'/' => 63,
+        _ => panic!("not base64: {c}"),
+    };
+    let clean: Vec<u8> = text.bytes().filter(|c| !c.is_ascii_whitespace()).collect();
+    let mut out = Vec::new();
+    for q in clean.chunks(4) {
+        let pad = q.iter().filter(|&&c| c == b'=').count();
+        let n = q
+            .iter()
+            .map(|&c| if c == b'=' { 0 } else { u32::from(val(c)) })
+            .fold(0u32, |n, v| (n << 6) | v);
+        let bytes = [(n >> 16) as u8, (n >> 8) as u8, n as u8];
+        out.extend_from_slice(&bytes[..3 - pad]);
+    }
+    out
+}
+
 /// `ergohand grasp` as a product designer runs it: the shipped bottle scene (given approach)
 /// writes `grasp.json` with the keys, a GLB whose hand and part carry the contact map
 /// as vertex colours, and a PNG; a scene with an unknown grasp type or a part in metres gets a
@@ -938,6 +1014,7 @@ fn grasp_writes_report_glb_and_map_and_refuses_bad_scenes() {
     assert!(coloured >= 2, "hand and part");
     let png = std::fs::read(out.join("contact_map.png")).unwrap();
     assert_eq!(&png[..8], b"\x89PNG\r\n\x1a\n");
+    view_page_holds_the_grasp(&out, &r);
 
     // An unknown grasp type: the scene, the field and the value, nothing written.
     let stl = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/bottle.stl");

@@ -189,9 +189,14 @@ pub fn demo(out: &Path) -> Result<()> {
         println!("    {}", report_dir.join("metrics.json").display());
         println!("    {}", report_dir.join("report.md").display());
         println!(
-            "  done in {:.1} s; open {}",
+            "    {} (the grasp in 3-D: open it in a browser)",
+            out.join("grasp").join("view.html").display()
+        );
+        println!(
+            "  done in {:.1} s; open {} and {}",
             t0.elapsed().as_secs_f64(),
-            report_dir.join("report.html").display()
+            report_dir.join("report.html").display(),
+            out.join("grasp").join("view.html").display()
         );
     }
     Ok(())

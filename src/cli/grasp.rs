@@ -8,6 +8,9 @@ use crate::grasp::{
 };
 use crate::io::output_paths::{check_output_dir, Inputs};
 use crate::io::Units;
+use crate::validate::view_page::{
+    view_html, Gradient, Legend, Swatch, ViewFrame, ViewGlb, ViewPage, ViewTable,
+};
 use std::path::{Path, PathBuf};
 
 /// Write `grasp.json`, `grasp.glb` and `contact_map.png` of an outcome into `out`; returns
@@ -42,7 +45,10 @@ pub(crate) fn write_outputs(o: &GraspOutcome, out: &Path) -> Result<Vec<u8>> {
         ],
         animations: Vec::new(),
     };
-    crate::io::gltf::write_glb(&out.join("grasp.glb"), &scene, Units::Metres)?;
+    let glb = crate::io::gltf::glb_bytes(&scene, Units::Metres)?;
+    crate::io::atomic::write_bytes_atomic(&out.join("grasp.glb"), &glb)?;
+    let page = view_page(o, glb);
+    crate::io::atomic::write_bytes_atomic(&out.join("view.html"), view_html(&page).as_bytes())?;
     // Picture: hand and part together, seen from the palm side of the part.
     let mut v = o.hand_mesh.vertices.clone();
     let mut f = o.hand_mesh.faces.clone();
@@ -76,7 +82,89 @@ pub(crate) fn write_outputs(o: &GraspOutcome, out: &Path) -> Result<Vec<u8>> {
 }
 
 /// The files [`write_outputs`] writes into its folder.
-pub(crate) const OUTPUT_FILES: [&str; 3] = ["grasp.json", "grasp.glb", "contact_map.png"];
+pub(crate) const OUTPUT_FILES: [&str; 4] =
+    ["grasp.json", "grasp.glb", "contact_map.png", "view.html"];
+
+/// The 3-D page of a grasp: `grasp.glb` (hand with its contact map, part), the contact map's
+/// legend, the grasp's figures and the contact area per link.
+fn view_page(o: &GraspOutcome, glb: Vec<u8>) -> ViewPage {
+    let r = &o.report;
+    let tol = ContactOptions::default().tolerance_mm;
+    let range = crate::grasp::COLOUR_RANGE_MM;
+    let held = r.hold_test.trials.iter().filter(|t| t.holds).count();
+    let yes = |b: bool| if b { "yes" } else { "no" }.to_string();
+    let scene_name = Path::new(&r.scene)
+        .file_stem()
+        .map_or_else(|| r.scene.clone(), |n| n.to_string_lossy().into_owned());
+    let (origin, [dorsal, radial, distal]) = o.hand_frame;
+    ViewPage {
+        title: format!("grasp: {scene_name}, {}", r.grasp_type),
+        kind: "grasp",
+        glbs: vec![ViewGlb {
+            name: "hand and part".into(),
+            role: "scene",
+            bytes: glb,
+        }],
+        part_nodes: vec!["part".into()],
+        legend: Some(Legend {
+            title: "skin distance to the part".into(),
+            unit: "mm".into(),
+            entries: vec![Swatch::rgb(
+                contact_colours(&[Some(0.0)], tol)[0],
+                format!("touching or inside (within {tol} mm)"),
+            )],
+            gradient: Gradient {
+                colormap: "viridis",
+                min: 0.0,
+                max: range,
+            },
+            beyond: Swatch::rgb(
+                contact_colours(&[None], tol)[0],
+                format!("farther than {range} mm"),
+            ),
+        }),
+        facts: vec![
+            ("scene".into(), r.scene.clone()),
+            ("force closure".into(), yes(r.force_closure)),
+            ("epsilon".into(), format!("{:.4}", r.epsilon)),
+            (
+                "holds".into(),
+                format!(
+                    "{}: {held} of {} directions",
+                    yes(r.holds),
+                    r.hold_test.trials.len()
+                ),
+            ),
+            (
+                "contact area".into(),
+                format!("{:.0} mm²", r.total_contact_area_mm2),
+            ),
+            (
+                "deepest penetration".into(),
+                format!("{:.1} mm", r.max_penetration_mm),
+            ),
+        ],
+        tables: vec![ViewTable {
+            title: "contact area per link".into(),
+            columns: vec!["link".into(), "area (mm²)".into()],
+            rows: r
+                .contact_area_mm2
+                .iter()
+                .filter(|(_, a)| **a > 0.0)
+                .map(|(l, a)| vec![l.clone(), format!("{a:.1}")])
+                .collect(),
+        }],
+        frame: Some(ViewFrame {
+            origin,
+            dorsal,
+            radial,
+            distal,
+        }),
+        // The contacts are on the palm's side, seen through the part.
+        view: Some("palmar"),
+        part_opacity: Some(0.35),
+    }
+}
 
 /// `ergohand grasp SCENE.toml --model OUT --out DIR`: read the scene, load the hand (`model`
 /// overrides the scene's `hand.model`; neither: the template), check the output folder (see

@@ -204,6 +204,9 @@ pub struct GraspOutcome {
     pub colour_distance: Vec<Option<f64>>,
     /// Part in the world.
     pub part_mesh: TriMesh,
+    /// The posed hand's wrist centre and its dorsal, radial and distal directions in the world
+    /// ([`crate::skeleton::Skeleton::hand_directions`] carried by the palm).
+    pub hand_frame: (Point, [crate::geometry::Vec3; 3]),
 }
 
 /// Distances shown by the contact map's colour ramp, mm.
@@ -495,12 +498,16 @@ pub fn run_scene_on(
             ..timings
         },
     };
+    let palm = crate::skeleton::forward_kinematics::link_transforms(hand.skeleton(), &pose)
+        [crate::anatomy::Link::Palm.index()];
+    let (origin, axes) = hand.skeleton().hand_directions();
     Ok(GraspOutcome {
         report,
         hand_mesh,
         contacts: cs,
         colour_distance,
         part_mesh: part.mesh.clone(),
+        hand_frame: (palm * origin, axes.map(|a| palm * a)),
     })
 }
 

@@ -67,6 +67,19 @@ pub struct Skeleton {
 }
 
 impl Skeleton {
+    /// The hand's anatomical directions at the wrist centre: dorsal (the wrist frame's y),
+    /// distal (towards the middle MCP, square to dorsal) and radial (from the little to the
+    /// index MCP, square to both), the same for either hand.
+    pub fn hand_directions(&self) -> (Point, [Vec3; 3]) {
+        let o = self.centre(Joint::Wrist);
+        let dorsal = self.joint(Joint::Wrist).y().normalize();
+        let d = self.centre(Joint::MMcp) - o;
+        let distal = (d - dorsal * d.dot(&dorsal)).normalize();
+        let r = self.centre(Joint::IMcp) - self.centre(Joint::LMcp);
+        let radial = (r - dorsal * r.dot(&dorsal) - distal * r.dot(&distal)).normalize();
+        (o, [dorsal, radial, distal])
+    }
+
     /// The frame of `j`.
     pub fn joint(&self, j: Joint) -> &JointFrame {
         &self.joints[j.index()]

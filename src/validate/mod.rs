@@ -4,7 +4,8 @@
 //! may call the stages' public functions on the subject's inputs (the joint trajectories are
 //! recomputed by the link module's registration); the pipeline never calls it. It also draws
 //! what a tracked trial's reader looks at (`motion_contact_map`, `motion_plots`,
-//! `motion_report`), from the tracking's results, for the `track` command to write.
+//! `motion_report`), from the tracking's results, for the `track` command to write, and the 3-D
+//! page of an output (`view_page`).
 
 pub mod charts;
 pub mod dimension_accuracy;
@@ -30,6 +31,7 @@ pub mod surface_error;
 pub mod surface_regions;
 pub mod tet_quality;
 pub mod thresholds;
+pub mod view_page;
 
 pub use dimension_accuracy::{dimension_accuracy, DimensionAccuracy};
 pub use link_accuracy::{link_accuracy, JointError, LinkAccuracy};

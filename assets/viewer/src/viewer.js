@@ -765,7 +765,15 @@ async function main() {
     await viewer.load();
     buildToolbar(viewer, data);
     let t = performance.now();
-    viewer.fit(viewer.presetDirection("initial"));
+    // The output may name its first view (a grasp: the palm, where the contacts are) and how
+    // much of the part shows at first.
+    const first = ["dorsal", "palmar", "radial", "ulnar"].includes(data.view) ? data.view : "initial";
+    viewer.fit(viewer.presetDirection(first));
+    if (typeof data.part_opacity === "number" && viewer.parts.length && viewer.controlsDom) {
+      const a = Math.min(1, Math.max(0, data.part_opacity));
+      viewer.setPartOpacity(a);
+      viewer.controlsDom.opacity.value = String(Math.round(100 * a));
+    }
     viewer.timings.fit = performance.now() - t;
     t = performance.now();
     const status = byId("eh-status");

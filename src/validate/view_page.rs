@@ -1,0 +1,331 @@
+//! `view.html`: a self-contained 3-D page of an output (the hand, the part, the contact map)
+//! that opens from `file://` with no network: the GLBs are embedded as base64, the viewer
+//! (three.js with its glTF loader and orbit controls, bundled once into
+//! `assets/viewer/viewer.bundle.js`) is inlined, and the page's data (facts, tables, legend,
+//! the hand's frame for the view presets) is JSON in the page. The contract between this writer
+//! and the viewer is `assets/viewer/README.md`.
+
+use crate::geometry::{Point, Vec3};
+use serde::Serialize;
+
+/// The page template (placeholders `{{TITLE}}`, `{{DATA_JSON}}`, `{{GLB_SCRIPTS}}`,
+/// `{{BUNDLE}}`).
+const TEMPLATE: &str = include_str!("../../assets/viewer/view-template.html");
+
+/// The viewer: three.js r187 (MIT, `assets/viewer/LICENSE-three.txt`) and the page's code.
+const BUNDLE: &str = include_str!("../../assets/viewer/viewer.bundle.js");
+
+/// One GLB of the page.
+#[derive(Clone, Debug)]
+pub struct ViewGlb {
+    /// What it shows (the readout names it).
+    pub name: String,
+    /// `scene` (hand and part in one), `hand` or `part` (the whole GLB is the part).
+    pub role: &'static str,
+    /// The GLB's bytes (metres, as glTF).
+    pub bytes: Vec<u8>,
+}
+
+/// A colour legend: named swatches, a viridis ramp from `min` to `max`, and what lies beyond.
+#[derive(Clone, Debug, Serialize)]
+pub struct Legend {
+    pub title: String,
+    pub unit: String,
+    pub entries: Vec<Swatch>,
+    pub gradient: Gradient,
+    pub beyond: Swatch,
+}
+
+/// One colour of a legend, `#rrggbb`.
+#[derive(Clone, Debug, Serialize)]
+pub struct Swatch {
+    pub colour: String,
+    pub label: String,
+}
+
+impl Swatch {
+    /// A swatch of an 8-bit colour.
+    pub fn rgb(c: [u8; 3], label: impl Into<String>) -> Swatch {
+        Swatch {
+            colour: format!("#{:02x}{:02x}{:02x}", c[0], c[1], c[2]),
+            label: label.into(),
+        }
+    }
+}
+
+/// A colour ramp of a legend (only `viridis`: the toolkit's one ramp).
+#[derive(Clone, Debug, Serialize)]
+pub struct Gradient {
+    pub colormap: &'static str,
+    pub min: f64,
+    pub max: f64,
+}
+
+/// A table of the page's side panel.
+#[derive(Clone, Debug, Serialize)]
+pub struct ViewTable {
+    pub title: String,
+    pub columns: Vec<String>,
+    pub rows: Vec<Vec<String>>,
+}
+
+/// The hand's anatomical directions at the wrist, for the view presets (dorsal, palmar,
+/// radial, ulnar), in the GLBs' frame and millimetres.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ViewFrame {
+    pub origin: Point,
+    pub dorsal: Vec3,
+    pub radial: Vec3,
+    pub distal: Vec3,
+}
+
+/// Everything a page shows.
+#[derive(Clone, Debug)]
+pub struct ViewPage {
+    pub title: String,
+    /// `grasp`, `pose`, `validate`, `population` or `track`.
+    pub kind: &'static str,
+    pub glbs: Vec<ViewGlb>,
+    /// Node names in the GLBs that are the part (hide and see-through controls).
+    pub part_nodes: Vec<String>,
+    pub legend: Option<Legend>,
+    /// Label and value, in order.
+    pub facts: Vec<(String, String)>,
+    pub tables: Vec<ViewTable>,
+    pub frame: Option<ViewFrame>,
+    /// The first view: `dorsal`, `palmar`, `radial` or `ulnar` (`None`: a three-quarter view
+    /// from the dorsal-radial side).
+    pub view: Option<&'static str>,
+    /// The part's opacity at first, 0-1 (`None`: opaque).
+    pub part_opacity: Option<f64>,
+}
+
+#[derive(Serialize)]
+struct Data<'a> {
+    title: &'a str,
+    kind: &'a str,
+    glb_units: &'static str,
+    meshes: Vec<MeshEntry<'a>>,
+    part_nodes: &'a [String],
+    #[serde(skip_serializing_if = "Option::is_none")]
+    legend: Option<&'a Legend>,
+    facts: Vec<[&'a str; 2]>,
+    tables: &'a [ViewTable],
+    #[serde(skip_serializing_if = "Option::is_none")]
+    frame: Option<FrameEntry>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    view: Option<&'static str>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    part_opacity: Option<f64>,
+}
+
+#[derive(Serialize)]
+struct MeshEntry<'a> {
+    glb: String,
+    role: &'a str,
+    name: &'a str,
+}
+
+#[derive(Serialize)]
+struct FrameEntry {
+    origin: [f64; 3],
+    dorsal: [f64; 3],
+    radial: [f64; 3],
+    distal: [f64; 3],
+}
+
+/// The page's HTML.
+pub fn view_html(page: &ViewPage) -> String {
+    let to_m = |p: &Point| [p.x / 1000.0, p.y / 1000.0, p.z / 1000.0];
+    let dir = |v: &Vec3| {
+        let u = v.normalize();
+        [u.x, u.y, u.z]
+    };
+    let data = Data {
+        title: &page.title,
+        kind: page.kind,
+        glb_units: "m",
+        meshes: page
+            .glbs
+            .iter()
+            .enumerate()
+            .map(|(i, g)| MeshEntry {
+                glb: format!("ergohand-glb-{i}"),
+                role: g.role,
+                name: &g.name,
+            })
+            .collect(),
+        part_nodes: &page.part_nodes,
+        legend: page.legend.as_ref(),
+        facts: page
+            .facts
+            .iter()
+            .map(|(k, v)| [k.as_str(), v.as_str()])
+            .collect(),
+        tables: &page.tables,
+        frame: page.frame.map(|f| FrameEntry {
+            origin: to_m(&f.origin),
+            dorsal: dir(&f.dorsal),
+            radial: dir(&f.radial),
+            distal: dir(&f.distal),
+        }),
+        view: page.view,
+        part_opacity: page.part_opacity,
+    };
+    // Every `<` escaped: no text of the data can end or reopen a script element.
+    let json = serde_json::to_string(&data)
+        .expect("serialisable")
+        .replace('<', "\\u003c");
+    let glbs: String = page
+        .glbs
+        .iter()
+        .enumerate()
+        .map(|(i, g)| {
+            format!(
+                "<script id=\"ergohand-glb-{i}\" type=\"application/octet-stream\">{}</script>\n",
+                base64(&g.bytes)
+            )
+        })
+        .collect();
+    let title = html_escape(&page.title);
+    fill(TEMPLATE, |name| match name {
+        "TITLE" => Some(&title),
+        "DATA_JSON" => Some(&json),
+        "GLB_SCRIPTS" => Some(&glbs),
+        "BUNDLE" => Some(BUNDLE),
+        _ => None,
+    })
+}
+
+/// `template` with each `{{NAME}}` replaced by `value(NAME)` in one pass (inserted text is not
+/// scanned again); a placeholder with no value stays as it is.
+fn fill<'a>(template: &str, value: impl Fn(&str) -> Option<&'a str>) -> String {
+    let mut out = String::with_capacity(template.len());
+    let mut rest = template;
+    while let Some(at) = rest.find("{{") {
+        out.push_str(&rest[..at]);
+        let after = &rest[at + 2..];
+        match after
+            .find("}}")
+            .and_then(|end| Some((end, value(&after[..end])?)))
+        {
+            Some((end, v)) => {
+                out.push_str(v);
+                rest = &after[end + 2..];
+            }
+            None => {
+                out.push_str("{{");
+                rest = after;
+            }
+        }
+    }
+    out.push_str(rest);
+    out
+}
+
+fn html_escape(s: &str) -> String {
+    s.replace('&', "&amp;")
+        .replace('<', "&lt;")
+        .replace('>', "&gt;")
+        .replace('"', "&quot;")
+}
+
+/// Standard base64 (RFC 4648, with padding).
+pub(crate) fn base64(bytes: &[u8]) -> String {
+    const A: &[u8; 64] = b"ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+    let mut out = String::with_capacity(bytes.len().div_ceil(3) * 4);
+    for c in bytes.chunks(3) {
+        let n = (u32::from(c[0]) << 16)
+            | (u32::from(*c.get(1).unwrap_or(&0)) << 8)
+            | u32::from(*c.get(2).unwrap_or(&0));
+        out.push(A[(n >> 18) as usize & 63] as char);
+        out.push(A[(n >> 12) as usize & 63] as char);
+        out.push(if c.len() > 1 {
+            A[(n >> 6) as usize & 63] as char
+        } else {
+            '='
+        });
+        out.push(if c.len() > 2 {
+            A[n as usize & 63] as char
+        } else {
+            '='
+        });
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn base64_matches_rfc_4648_vectors() {
+        for (plain, coded) in [
+            ("", ""),
+            ("f", "Zg=="),
+            ("fo", "Zm8="),
+            ("foo", "Zm9v"),
+            ("foob", "Zm9vYg=="),
+            ("fooba", "Zm9vYmE="),
+            ("foobar", "Zm9vYmFy"),
+        ] {
+            assert_eq!(base64(plain.as_bytes()), coded);
+        }
+    }
+
+    #[test]
+    fn fill_is_one_pass_and_keeps_unknown_placeholders() {
+        let out = fill("a{{X}}b{{Y}}c{{", |n| match n {
+            "X" => Some("{{Y}}"),
+            _ => None,
+        });
+        assert_eq!(out, "a{{Y}}b{{Y}}c{{");
+    }
+
+    #[test]
+    fn the_page_embeds_everything_and_no_data_can_close_its_script() {
+        let page = ViewPage {
+            title: "a </script><!--<script> & {{BUNDLE}}".into(),
+            kind: "grasp",
+            glbs: vec![ViewGlb {
+                name: "hand".into(),
+                role: "scene",
+                bytes: b"glTF....".to_vec(),
+            }],
+            part_nodes: vec!["part".into()],
+            legend: None,
+            facts: vec![("x".into(), "</script>".into())],
+            tables: vec![],
+            frame: Some(ViewFrame {
+                origin: Point::new(1000.0, 0.0, 0.0),
+                dorsal: Vec3::new(0.0, 2.0, 0.0),
+                radial: Vec3::x(),
+                distal: Vec3::z(),
+            }),
+            view: Some("palmar"),
+            part_opacity: None,
+        };
+        let html = view_html(&page);
+        // The data element holds no `<` at all, and parses back to the same strings.
+        let start = html.find("type=\"application/json\">").unwrap() + 24;
+        let end = start + html[start..].find("</script>").unwrap();
+        let json = &html[start..end];
+        assert!(!json.contains('<'));
+        let v: serde_json::Value = serde_json::from_str(json).unwrap();
+        assert_eq!(v["title"], page.title);
+        assert_eq!(v["facts"][0][1], "</script>");
+        assert_eq!(v["frame"]["origin"][0], 1.0, "metres, as the GLBs");
+        assert_eq!(v["frame"]["dorsal"][1], 1.0, "a unit vector");
+        assert_eq!(v["view"], "palmar");
+        assert!(v.get("part_opacity").is_none());
+        assert!(html.contains(
+            "<script id=\"ergohand-glb-0\" type=\"application/octet-stream\">Z2xURi4uLi4=</script>"
+        ));
+        // The bundle once, the title escaped, nothing left to fill.
+        assert_eq!(html.matches(BUNDLE).count(), 1);
+        assert!(html.contains("a &lt;/script&gt;&lt;!--&lt;script&gt; &amp; {{BUNDLE}}"));
+        for p in ["{{DATA_JSON}}", "{{GLB_SCRIPTS}}", "{{TITLE}}"] {
+            assert!(!html.contains(p), "{p}");
+        }
+    }
+}
