@@ -9,7 +9,7 @@
 use crate::anatomy::{Joint, Side};
 use crate::error::{Error, Result};
 use crate::geometry::tet_mesh::TetMesh;
-use crate::link::LinkModel;
+use crate::link::{anthropometry, LinkModel};
 use crate::mocap::subject::{Subject, TrialKind};
 use crate::pose::{IndividualHand, WeightMethod};
 use crate::skin::pipeline::{fit_skin, FitResolution, SkinFit, SkinOptions};
@@ -195,7 +195,8 @@ fn stages<'p>(
     log::debug!("{}: link model in {t_link:.2} s", subject.name);
     // A hand no human has is refused before the skin is fitted to it.
     let who = subject.dir.display().to_string();
-    crate::link::anthropometry::check_link_proportions(&motion.skeleton, &who)?;
+    let motion_proportions = anthropometry::hand_proportions(&motion.skeleton);
+    anthropometry::check_link_proportions(&motion_proportions, &who)?;
 
     let t1 = Instant::now();
     let skin = fit_skin(
@@ -211,9 +212,9 @@ fn stages<'p>(
         .link_model
         .clone()
         .ok_or_else(|| Error::invalid("skin: no section 3.6 link model returned"))?;
-    crate::link::anthropometry::check_skin_size(&skin.high, &link_model.skeleton, &who)?;
-    let proportions =
-        crate::link::anthropometry::check_link_proportions(&link_model.skeleton, &who)?;
+    let final_proportions = anthropometry::hand_proportions(&link_model.skeleton);
+    anthropometry::check_skin_size(&skin.high, &final_proportions, &who)?;
+    let proportions = anthropometry::check_link_proportions(&final_proportions, &who)?;
     // The model's warnings: the trials' (samples dropped) before the estimation's, then the
     // proportions'.
     link_model.warnings = trial_warnings

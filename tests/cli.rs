@@ -926,7 +926,8 @@ fn view_page_holds_the_grasp(out: &Path, r: &serde_json::Value) {
     }
     assert_eq!(data["part_nodes"][0], "part");
     let glb = between("<script id=\"ergohand-glb-0\" type=\"application/octet-stream\">");
-    let decoded = base64_decode(glb);
+    // The reference crate decodes it (an independent reader of the page's GLB).
+    let decoded = base64::decode(glb).unwrap();
     assert_eq!(decoded, std::fs::read(out.join("grasp.glb")).unwrap());
     let f = &data["frame"];
     let v = |k: &str| -> [f64; 3] { std::array::from_fn(|i| f[k][i].as_f64().unwrap()) };
@@ -938,30 +939,6 @@ fn view_page_holds_the_grasp(out: &Path, r: &serde_json::Value) {
     for a in [d, ra, di] {
         assert!((dot(a, a) - 1.0).abs() < 1e-9);
     }
-}
-
-/// Standard base64 decoding (an independent reader of the page's GLB).
-fn base64_decode(text: &str) -> Vec<u8> {
-    let val = |c: u8| match c {
-        b'A'..=b'Z' => c - b'A',
-        b'a'..=b'z' => c - b'a' + 26,
-        b'0'..=b'9' => c - b'0' + 52,
-        b'+' => 62,
-        b'/' => 63,
-        _ => panic!("not base64: {c}"),
-    };
-    let clean: Vec<u8> = text.bytes().filter(|c| !c.is_ascii_whitespace()).collect();
-    let mut out = Vec::new();
-    for q in clean.chunks(4) {
-        let pad = q.iter().filter(|&&c| c == b'=').count();
-        let n = q
-            .iter()
-            .map(|&c| if c == b'=' { 0 } else { u32::from(val(c)) })
-            .fold(0u32, |n, v| (n << 6) | v);
-        let bytes = [(n >> 16) as u8, (n >> 8) as u8, n as u8];
-        out.extend_from_slice(&bytes[..3 - pad]);
-    }
-    out
 }
 
 /// `ergohand grasp` as a product designer runs it: the shipped bottle scene (given approach)

@@ -89,29 +89,32 @@ fn stale_temporaries_of(path: &Path) -> Vec<PathBuf> {
     let (Some(dir), Some(name)) = (path.parent(), path.file_name()) else {
         return Vec::new();
     };
-    let prefix = format!(".{}.", name.to_string_lossy());
     let dir = if dir.as_os_str().is_empty() {
         Path::new(".")
     } else {
         dir
     };
-    stale_temporaries_in(dir)
-        .into_iter()
-        .filter(|p| {
-            p.file_name()
-                .is_some_and(|n| n.to_string_lossy().starts_with(&prefix))
-        })
-        .collect()
+    stale_named(dir, &format!(".{}.", name.to_string_lossy()))
 }
 
 /// Every stale temporary file ([`is_stale_temporary`]) directly in `dir`, sorted.
 pub fn stale_temporaries_in(dir: &Path) -> Vec<PathBuf> {
+    stale_named(dir, ".")
+}
+
+/// The stale temporary files directly in `dir` whose names start with `prefix`, sorted (the
+/// name is matched before the file's times are read: a write into a full folder reads only its
+/// own file's temporaries).
+fn stale_named(dir: &Path, prefix: &str) -> Vec<PathBuf> {
     let now = std::time::SystemTime::now();
     let mut out: Vec<PathBuf> = fs::read_dir(dir)
         .into_iter()
         .flatten()
         .flatten()
         .filter(|e| {
+            if !e.file_name().to_string_lossy().starts_with(prefix) {
+                return false;
+            }
             let Ok(meta) = e.metadata() else {
                 return false;
             };
@@ -141,28 +144,24 @@ impl FolderLock {
     /// file, or a file system without locks) it holds nothing and says so at debug level.
     pub fn acquire(dir: &Path) -> Result<FolderLock> {
         fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
-        let Ok(file) = fs::File::open(dir) else {
-            log::debug!("{}: the folder cannot be locked here", dir.display());
-            return Ok(FolderLock { _dir: None });
-        };
-        match file.try_lock() {
-            Ok(()) => {}
-            Err(fs::TryLockError::WouldBlock) => {
-                log::info!(
-                    "{}: another ergohand run is writing there; waiting for it to finish",
-                    dir.display()
-                );
-                if let Err(e) = file.lock() {
-                    log::debug!("{}: the folder cannot be locked here: {e}", dir.display());
-                    return Ok(FolderLock { _dir: None });
+        let held = fs::File::open(dir).and_then(|file| {
+            match file.try_lock() {
+                Ok(()) => {}
+                Err(fs::TryLockError::WouldBlock) => {
+                    log::info!(
+                        "{}: another ergohand run is writing there; waiting for it to finish",
+                        dir.display()
+                    );
+                    file.lock()?;
                 }
+                Err(fs::TryLockError::Error(e)) => return Err(e),
             }
-            Err(fs::TryLockError::Error(e)) => {
-                log::debug!("{}: the folder cannot be locked here: {e}", dir.display());
-                return Ok(FolderLock { _dir: None });
-            }
+            Ok(file)
+        });
+        if let Err(e) = &held {
+            log::debug!("{}: the folder cannot be locked here: {e}", dir.display());
         }
-        Ok(FolderLock { _dir: Some(file) })
+        Ok(FolderLock { _dir: held.ok() })
     }
 }
 

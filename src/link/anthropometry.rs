@@ -92,11 +92,11 @@ pub fn hand_proportions(sk: &Skeleton) -> HandProportions {
     }
 }
 
-/// The gate on a link model `sk` of the subject `who` (a folder, for the messages): an error
-/// when its hand length is not a human's, else the warnings (an unusual hand length, links far
-/// from their prediction), each naming the link and the trial to check.
-pub fn check_link_proportions(sk: &Skeleton, who: &str) -> Result<Vec<String>> {
-    let p = hand_proportions(sk);
+/// The gate on a link model's proportions `p` ([`hand_proportions`]) of the subject `who` (a
+/// folder, for the messages): an error when its hand length is not a human's, else the
+/// warnings (an unusual hand length, links far from their prediction), each naming the link and
+/// the trial to check.
+pub fn check_link_proportions(p: &HandProportions, who: &str) -> Result<Vec<String>> {
     let length = p.hand_length_mm;
     let (lo, hi) = HUMAN_HAND_LENGTH_MM;
     if !(lo..=hi).contains(&length) {
@@ -132,10 +132,10 @@ pub fn check_link_proportions(sk: &Skeleton, who: &str) -> Result<Vec<String>> {
     Ok(warnings)
 }
 
-/// The gate on a fitted `skin` against the link model's hand length (of the subject `who`): an
-/// error when the skin's size is grossly not the link model's.
-pub fn check_skin_size(skin: &TriMesh, sk: &Skeleton, who: &str) -> Result<()> {
-    let length = hand_proportions(sk).hand_length_mm;
+/// The gate on a fitted `skin` against the link model's hand length (its proportions `p`, of
+/// the subject `who`): an error when the skin's size is grossly not the link model's.
+pub fn check_skin_size(skin: &TriMesh, p: &HandProportions, who: &str) -> Result<()> {
+    let length = p.hand_length_mm;
     let diagonal = skin.diagonal();
     let ratio = diagonal / length;
     let (lo, hi) = SKIN_RATIO_RANGE;
@@ -193,19 +193,19 @@ mod tests {
     fn a_template_hand_passes_silently_and_a_hand_no_human_has_is_refused() {
         let sk = template_skeleton();
         assert_eq!(
-            check_link_proportions(&sk, "S").unwrap(),
+            check_link_proportions(&hand_proportions(&sk), "S").unwrap(),
             Vec::<String>::new()
         );
         // Millimetres read as centimetres and the reverse.
         for s in [0.1, 10.0] {
-            let e = check_link_proportions(&scaled(&sk, s), "S").unwrap_err();
+            let e = check_link_proportions(&hand_proportions(&scaled(&sk, s)), "S").unwrap_err();
             assert!(
                 e.to_string().starts_with("S: the link model gives a hand"),
                 "{e}"
             );
         }
         // A child's hand (0.55 of the template): a warning, not an error.
-        let w = check_link_proportions(&scaled(&sk, 0.55), "S").unwrap();
+        let w = check_link_proportions(&hand_proportions(&scaled(&sk, 0.55)), "S").unwrap();
         assert_eq!(w.len(), 1, "{w:?}");
         assert!(w[0].contains("mm long (outside 100-260 mm"), "{w:?}");
     }
@@ -223,7 +223,7 @@ mod tests {
         let after = hand_proportions(&wild).hand_length_mm;
         // The median moves by at most one neighbour's step.
         assert!((after - before).abs() < 0.1 * before, "{before} -> {after}");
-        let w = check_link_proportions(&wild, "S").unwrap();
+        let w = check_link_proportions(&hand_proportions(&wild), "S").unwrap();
         assert_eq!(w.len(), 1, "{w:?}");
         assert!(
             w[0].starts_with("link model: I_PIP-I_DIP is") && w[0].contains("the index trial"),
@@ -234,14 +234,14 @@ mod tests {
     #[test]
     fn a_skin_of_another_size_than_the_link_model_is_refused() {
         let template = crate::template::load_template(Side::Right).unwrap();
-        let sk = &template.skeleton;
-        check_skin_size(&template.mesh, sk, "S").unwrap();
+        let p = hand_proportions(&template.skeleton);
+        check_skin_size(&template.mesh, &p, "S").unwrap();
         for s in [0.3, 5.0] {
             let mut skin = template.mesh.clone();
             for v in &mut skin.vertices {
                 *v = Point::from(v.coords * s);
             }
-            let e = check_skin_size(&skin, sk, "S").unwrap_err().to_string();
+            let e = check_skin_size(&skin, &p, "S").unwrap_err().to_string();
             assert!(e.starts_with("S: the fitted skin spans"), "{e}");
         }
     }

@@ -116,12 +116,7 @@ pub(crate) fn template_regions(
 fn template_patches(mesh: &TriMesh, weights: &LinkWeights, skeleton: &Skeleton) -> Vec<Patch> {
     let dominant = dominant_links(weights);
     let normals = mesh.vertex_normals();
-    let wrist = skeleton.centre(Joint::Wrist);
-    let dorsal = skeleton.joint(Joint::Wrist).y().normalize();
-    let distal = skeleton.centre(Joint::MMcp) - wrist;
-    let distal = (distal - dorsal * distal.dot(&dorsal)).normalize();
-    let radial = skeleton.centre(Joint::IMcp) - skeleton.centre(Joint::LMcp);
-    let radial = (radial - dorsal * radial.dot(&dorsal) - distal * radial.dot(&distal)).normalize();
+    let (wrist, [dorsal, radial, distal]) = skeleton.hand_directions();
     let along = |v: Vec3, axis: Vec3| v.dot(&axis);
     let ring = skeleton.centre(Joint::RMcp) - wrist;
     let little = skeleton.centre(Joint::LMcp) - wrist;

@@ -17,24 +17,10 @@ if [ "$#" -lt 1 ]; then
   exit 2
 fi
 
-find_chromium() {
-  for c in chromium chromium-browser google-chrome google-chrome-stable; do
-    if command -v "$c" >/dev/null 2>&1; then
-      command -v "$c"
-      return 0
-    fi
-  done
-  return 1
-}
-
-if ! CHROMIUM=$(find_chromium); then
-  echo "check_report: installing chromium (apt-get)" >&2
-  SUDO=""
-  if [ "$(id -u)" != 0 ] && command -v sudo >/dev/null 2>&1; then SUDO=sudo; fi
-  $SUDO apt-get update -qq >&2
-  DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq chromium >&2
-  CHROMIUM=$(find_chromium) || { echo "check_report: chromium could not be installed" >&2; exit 2; }
-fi
+CHECK_NAME=check_report
+# shellcheck source=chromium.sh
+. "$(cd "$(dirname "$0")" && pwd)/chromium.sh"
+need_chromium
 
 status=0
 for report in "$@"; do

@@ -33,29 +33,10 @@ here=$(cd "$(dirname "$0")" && pwd)
 root=$(cd "$here/../.." && pwd)
 PLAYWRIGHT_VERSION=1.65.1
 
-SUDO=""
-if [ "$(id -u)" != 0 ] && command -v sudo >/dev/null 2>&1; then SUDO=sudo; fi
-apt_updated=""
-apt_install() {
-  if [ -z "$apt_updated" ]; then $SUDO apt-get update -qq >&2; apt_updated=1; fi
-  DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq "$@" >&2
-}
-
-find_chromium() {
-  for c in chromium chromium-browser google-chrome google-chrome-stable; do
-    if command -v "$c" >/dev/null 2>&1; then
-      command -v "$c"
-      return 0
-    fi
-  done
-  return 1
-}
-
-if ! CHROMIUM=$(find_chromium); then
-  echo "check_view: installing chromium (apt-get)" >&2
-  apt_install chromium
-  CHROMIUM=$(find_chromium) || { echo "check_view: chromium could not be installed" >&2; exit 2; }
-fi
+CHECK_NAME=check_view
+# shellcheck source=chromium.sh
+. "$here/chromium.sh"
+need_chromium
 if ! command -v node >/dev/null 2>&1 || ! command -v npm >/dev/null 2>&1; then
   echo "check_view: installing node and npm (apt-get)" >&2
   apt_install nodejs npm
