@@ -1064,7 +1064,146 @@ fn the_template_cannot_reach_the_procedural_body() {
         surface.mean_mm
     );
     every_builtin_pose_keeps_its_elements_positive(&model, tmp.path());
+    pose_page_and_baked_glb(&model, tmp.path());
     grasp_a_population(&model, tmp.path());
+}
+
+/// The page data of a view page, and the bytes of its binary element `id`.
+fn view_page_data(page: &Path, id: &str) -> (serde_json::Value, Vec<u8>) {
+    let html = std::fs::read_to_string(page).unwrap();
+    let between = |start: &str| {
+        let a = html.find(start).unwrap() + start.len();
+        html[a..a + html[a..].find("</script>").unwrap()].to_string()
+    };
+    let data = serde_json::from_str(&between(
+        "<script id=\"ergohand-view-data\" type=\"application/json\">",
+    ))
+    .unwrap();
+    let bin = base64::decode(between(&format!(
+        "<script id=\"{id}\" type=\"application/octet-stream\">"
+    )))
+    .unwrap();
+    (data, bin)
+}
+
+/// `pose` writes a page beside its output whose hand is the written skin, whose rig describes
+/// the toolkit's own forward kinematics (every vertex that follows one link rigidly is where
+/// the rig's joints, composed here from the page's data alone, put it), and a skinned `.glb`
+/// gets the kept-volume skin baked beside it (what `.obj` writes at the same angles).
+fn pose_page_and_baked_glb(model: &Path, tmp: &Path) {
+    use nalgebra::{Isometry3, Point3, Translation3, Unit, UnitQuaternion, Vector3};
+    let dir = tmp.join("pose-page");
+    std::fs::create_dir_all(&dir).unwrap();
+    let run = |out: &str| {
+        let p = ergohand(&[
+            "pose",
+            model.to_str().unwrap(),
+            "--pose",
+            "fist",
+            "--keep-angles",
+            "--out",
+            dir.join(out).to_str().unwrap(),
+        ]);
+        assert!(p.status.success(), "{out}: {}", stderr(&p));
+    };
+    run("fist.obj");
+    run("fistg.glb");
+    let obj = ergohand::io::obj::read_obj(&dir.join("fist.obj"), Units::Millimetres).unwrap();
+    let (data, bin) = view_page_data(&dir.join("fist.view.html"), "ergohand-bin-0");
+    assert_eq!(data["kind"], "pose");
+    let rig = &data["rig"];
+    let n = rig["vertices"].as_u64().unwrap() as usize;
+    assert_eq!(n, obj.n_vertices());
+    let f32s = |k: &str| -> Vec<f64> {
+        let (at, count) = (
+            rig[k][0].as_u64().unwrap() as usize,
+            rig[k][1].as_u64().unwrap() as usize,
+        );
+        (0..count)
+            .map(|i| f32::from_le_bytes(bin[at + 4 * i..at + 4 * i + 4].try_into().unwrap()) as f64)
+            .collect()
+    };
+    let u32s = |k: &str| -> Vec<usize> {
+        let (at, count) = (
+            rig[k][0].as_u64().unwrap() as usize,
+            rig[k][1].as_u64().unwrap() as usize,
+        );
+        (0..count)
+            .map(|i| {
+                u32::from_le_bytes(bin[at + 4 * i..at + 4 * i + 4].try_into().unwrap()) as usize
+            })
+            .collect()
+    };
+    let (rest, shown, weights) = (f32s("rest"), f32s("shown"), f32s("weights"));
+    let offsets = u32s("offsets");
+    let links_at = rig["links"][0].as_u64().unwrap() as usize;
+    let p = |xs: &[f64], i: usize| Point3::new(xs[3 * i], xs[3 * i + 1], xs[3 * i + 2]);
+    // The page shows what was written.
+    for (i, v) in obj.vertices.iter().enumerate() {
+        assert!((p(&shown, i) - v).norm() < 1e-3, "vertex {i}");
+    }
+    let skin = ergohand::io::obj::read_obj(&model.join("skin.obj"), Units::Millimetres).unwrap();
+    for (i, v) in skin.vertices.iter().enumerate() {
+        assert!((p(&rest, i) - v).norm() < 1e-3, "rest vertex {i}");
+    }
+    // The rig's forward kinematics, from the page's data alone.
+    let v3 = |x: &serde_json::Value| {
+        Vector3::new(
+            x[0].as_f64().unwrap(),
+            x[1].as_f64().unwrap(),
+            x[2].as_f64().unwrap(),
+        )
+    };
+    let root = &rig["root"]["rotation"];
+    let q = nalgebra::Quaternion::new(
+        root[0].as_f64().unwrap(),
+        root[1].as_f64().unwrap(),
+        root[2].as_f64().unwrap(),
+        root[3].as_f64().unwrap(),
+    );
+    let mut t = vec![Isometry3::identity(); rig["link_names"].as_array().unwrap().len()];
+    t[0] = Isometry3::from_parts(
+        Translation3::from(v3(&rig["root"]["translation"])),
+        UnitQuaternion::from_quaternion(q),
+    );
+    let fist = ergohand::pose::named_pose("fist").unwrap();
+    for (k, j) in rig["joints"].as_array().unwrap().iter().enumerate() {
+        let mut r = UnitQuaternion::identity();
+        for (d, axis) in j["axes"].as_array().unwrap().iter().enumerate() {
+            let deg = j["deg"][d].as_f64().unwrap();
+            assert!((deg - fist.angles[k][d].to_degrees()).abs() < 1e-9, "{j}");
+            r *= UnitQuaternion::from_axis_angle(&Unit::new_normalize(v3(axis)), deg.to_radians());
+        }
+        let c = v3(&j["centre"]);
+        let about = Isometry3::from_parts(Translation3::from(c - r * c), r);
+        let (parent, child) = (
+            j["parent"].as_u64().unwrap() as usize,
+            j["child"].as_u64().unwrap() as usize,
+        );
+        t[child] = t[parent] * about;
+    }
+    let mut rigid = 0;
+    for i in 0..n {
+        let (a, b) = (offsets[i], offsets[i + 1]);
+        if b - a == 1 && (weights[a] - 1.0).abs() < 1e-6 {
+            let link = bin[links_at + a] as usize;
+            let want = t[link] * p(&rest, i);
+            assert!(
+                (want - obj.vertices[i]).norm() < 2e-3,
+                "vertex {i} on link {link}"
+            );
+            rigid += 1;
+        }
+    }
+    eprintln!("{rigid} of {n} vertices follow one link rigidly");
+    assert!(rigid > n / 20, "{rigid} of {n} vertices follow one link");
+    // The skinned GLB's baked twin is the kept-volume skin of the same angles.
+    let baked = ergohand::io::gltf::read_gltf(&dir.join("fistg.baked.glb"), Units::Metres).unwrap();
+    assert_eq!(baked.meshes.len(), 1);
+    for (a, b) in baked.meshes[0].mesh.vertices.iter().zip(&obj.vertices) {
+        assert!((a - b).norm() < 1e-3);
+    }
+    assert!(dir.join("fistg.view.html").exists());
 }
 
 /// Every built-in pose of the model folder `model` as a tetrahedral mesh: fewer than one

@@ -182,12 +182,17 @@ pub fn demo(out: &Path) -> Result<()> {
             "tet.msh",
             "hand.glb",
             "fist.glb",
+            "fist.baked.glb",
             "report.json",
         ] {
             println!("    {}", model_dir.join(f).display());
         }
         println!("    {}", report_dir.join("metrics.json").display());
         println!("    {}", report_dir.join("report.md").display());
+        println!(
+            "    {} (the fist in 3-D with joint sliders: open it in a browser)",
+            fist.view.display()
+        );
         println!(
             "    {} (the grasp in 3-D: open it in a browser)",
             out.join("grasp").join("view.html").display()

@@ -163,6 +163,7 @@ fn view_page(o: &GraspOutcome, glb: Vec<u8>) -> ViewPage {
         // The contacts are on the palm's side, seen through the part.
         view: Some("palmar"),
         part_opacity: Some(0.35),
+        rig: None,
     }
 }
 

@@ -8,6 +8,7 @@ use crate::pose::{
     gltf, quality, resolve_finger_contacts, resolve_finger_contacts_on, resolve_pose, volume_rig,
     IndividualHand, ResolveOptions, Skinning, VolumeOptions, WeightMethod,
 };
+use crate::validate::view_page::{view_html, ViewFrame, ViewPage, ViewRig, ViewTable};
 use std::path::{Path, PathBuf};
 
 /// What [`pose`] did.
@@ -18,6 +19,8 @@ pub struct PoseSummary {
     pub warnings: Vec<String>,
     /// The file written.
     pub written: std::path::PathBuf,
+    /// The 3-D page beside it ([`view_page_path`]).
+    pub view: std::path::PathBuf,
     /// Deepest finger-finger penetration of the written pose, mm.
     pub penetration_mm: f64,
 }
@@ -129,11 +132,13 @@ pub(crate) fn pose_job(
     } else {
         Skinning::DualQuaternion
     };
-    // The tetrahedral mesh is needed for a volume-kept skin and for a posed mesh.
-    let rig = if ext.as_deref() == Some("glb") {
-        None
-    } else if !opts.preserve_volume && ext.as_deref() == Some("obj") {
+    // The tetrahedral mesh is needed for a volume-kept skin and for a posed mesh; a skinned
+    // .glb gets the kept-volume skin baked beside it when the folder has one.
+    let glb = ext.as_deref() == Some("glb");
+    let rig = if !opts.preserve_volume && matches!(ext.as_deref(), Some("obj") | Some("glb")) {
         // The plain DQS skin needs no tetrahedral mesh.
+        None
+    } else if glb && !model_dir.join("tet.vtk").exists() {
         None
     } else if ext.as_deref() == Some("obj") && !model_dir.join("tet.vtk").exists() {
         warnings.push(format!(
@@ -151,7 +156,7 @@ pub(crate) fn pose_job(
         // On the skin that is written: the volume correction swells the fingers at their
         // joints, which would push digits just set apart back into each other.
         let r = match &rig {
-            Some(rig) if opts.preserve_volume => resolve_finger_contacts_on(
+            Some(rig) if opts.preserve_volume && !glb => resolve_finger_contacts_on(
                 &hand,
                 &pose,
                 |p| rig.corrected_skin(&hand, p, &volume_opts),
@@ -168,7 +173,7 @@ pub(crate) fn pose_job(
         None => None,
         Some(rig) => {
             let posed = rig.pose(&hand, &pose, opts.preserve_volume, &volume_opts)?;
-            if ext.as_deref() != Some("obj") {
+            if matches!(ext.as_deref(), Some("vtk") | Some("msh")) {
                 if let Some(w) = inverted_warning(&posed, rig.tets.len()) {
                     warnings.push(format!("{}: {w}", out_file.display()));
                 }
@@ -201,8 +206,8 @@ pub(crate) fn pose_job(
     let penetration_mm = resolved_depth_mm.unwrap_or_else(|| {
         let max_depth = ResolveOptions::default().max_depth_mm;
         match &baked {
-            Some((_, p)) => quality::finger_penetration(&p.skin, &hand.weights, max_depth),
-            None => quality::finger_penetration(
+            Some((_, p)) if !glb => quality::finger_penetration(&p.skin, &hand.weights, max_depth),
+            _ => quality::finger_penetration(
                 &hand.posed_skin(&pose, method),
                 &hand.weights,
                 max_depth,
@@ -213,7 +218,16 @@ pub(crate) fn pose_job(
     for w in &warnings {
         log::log!(voice.warn(), "{w}");
     }
-    match ext.as_deref() {
+    // Figures of the geometry the page shows as written (a .glb shows its viewer's skinning).
+    let volume_note = baked
+        .as_ref()
+        .filter(|_| opts.preserve_volume && !glb)
+        .map(|(_, b)| signed_worst(&b.volume_changes));
+    let inverted = baked
+        .as_ref()
+        .filter(|_| matches!(ext.as_deref(), Some("vtk") | Some("msh")))
+        .map(|(_, b)| b.untangle.inverted_after);
+    let shown = match ext.as_deref() {
         Some("glb") => {
             let scene = gltf::skinned_scene(
                 "hand",
@@ -223,6 +237,20 @@ pub(crate) fn pose_job(
                 Some(&pose),
             );
             write_glb(out_file, &scene, Units::Metres)?;
+            if let Some((_, b)) = &baked {
+                let path = baked_glb_path(out_file);
+                write_glb(&path, &baked_scene(&b.skin), Units::Metres)?;
+                log::log!(
+                    voice.info(),
+                    "{}: the skin as the toolkit poses it (dual-quaternion skinning with each \
+                     finger segment's volume kept), baked",
+                    path.display()
+                );
+            }
+            Shown {
+                skin: hand.posed_skin(&pose, Skinning::Linear).vertices,
+                how: "linear blend skinning, as a glTF viewer shows the .glb",
+            }
         }
         Some("vtk") | Some("msh") => {
             let (tets, b) = baked.ok_or_else(|| Error::invalid("posed tet mesh missing"))?;
@@ -235,26 +263,200 @@ pub(crate) fn pose_job(
             } else {
                 crate::io::gmsh::write_msh(out_file, &posed, Units::Millimetres)?;
             }
+            Shown {
+                skin: b.skin.vertices,
+                how: if opts.preserve_volume {
+                    "the skin of the posed tetrahedral mesh: dual-quaternion skinning with each \
+                     finger segment's volume kept"
+                } else {
+                    "the skin of the posed tetrahedral mesh: dual-quaternion skinning"
+                },
+            }
         }
         _ => {
-            let posed = match baked {
-                Some((_, b)) => b.skin,
-                None => hand.posed_skin(&pose, method),
+            let (posed, how) = match baked {
+                Some((_, b)) => (
+                    b.skin,
+                    "dual-quaternion skinning with each finger segment's volume kept",
+                ),
+                None => (hand.posed_skin(&pose, method), "dual-quaternion skinning"),
             };
             write_obj(out_file, &posed, Units::Millimetres, None)?;
+            Shown {
+                skin: posed.vertices,
+                how,
+            }
         }
-    }
+    };
+    let page_path = view_page_path(out_file);
+    let page = pose_view_page(&PoseView {
+        hand: &hand,
+        pose: &pose,
+        pose_arg,
+        written: out_file,
+        shown,
+        resolved: opts.resolve_contacts,
+        penetration_mm,
+        worst_volume_change: volume_note,
+        inverted_tets: inverted,
+    });
+    crate::io::atomic::write_bytes_atomic(&page_path, view_html(&page).as_bytes())?;
     log::log!(
         voice.info(),
-        "pose {pose_arg}: {} -> {} (deepest finger-finger penetration {penetration_mm:.1} mm)",
+        "pose {pose_arg}: {} -> {} (deepest finger-finger penetration {penetration_mm:.1} mm); \
+         3-D view with joint sliders: {}",
         model_dir.display(),
-        out_file.display()
+        out_file.display(),
+        page_path.display()
     );
     Ok(PoseSummary {
         warnings,
         written: out_file.to_path_buf(),
+        view: page_path,
         penetration_mm,
     })
+}
+
+/// The baked skin beside a skinned GLB: `fist.glb` -> `fist.baked.glb`.
+pub(crate) fn baked_glb_path(out_file: &Path) -> PathBuf {
+    out_file.with_extension("baked.glb")
+}
+
+/// A posed skin as a still glTF scene (one mesh, smooth normals).
+fn baked_scene(skin: &crate::geometry::TriMesh) -> crate::io::gltf::Scene {
+    crate::io::gltf::Scene {
+        meshes: vec![crate::io::gltf::SceneMesh {
+            name: "hand".into(),
+            mesh: skin.clone(),
+            normals: Some(skin.vertex_normals()),
+            colors: None,
+            skin: None,
+        }],
+        animations: Vec::new(),
+    }
+}
+
+/// The page beside a pose output: `fist.glb` -> `fist.view.html`.
+pub(crate) fn view_page_path(out_file: &Path) -> PathBuf {
+    out_file.with_extension("view.html")
+}
+
+/// The skin as the written output has it, and how it was posed.
+struct Shown {
+    skin: Vec<crate::geometry::Point>,
+    how: &'static str,
+}
+
+/// What the pose's page shows.
+struct PoseView<'a> {
+    hand: &'a IndividualHand,
+    pose: &'a crate::skeleton::Pose,
+    pose_arg: &'a str,
+    written: &'a Path,
+    shown: Shown,
+    resolved: bool,
+    penetration_mm: f64,
+    worst_volume_change: Option<f64>,
+    inverted_tets: Option<usize>,
+}
+
+/// The 3-D page of a pose: the hand as written, and joint sliders that pose it again with the
+/// toolkit's dual-quaternion skinning.
+fn pose_view_page(v: &PoseView) -> ViewPage {
+    use crate::anatomy::Joint;
+    use crate::skeleton::forward_kinematics::{link_transforms, posed_skeleton};
+    let pose_name = Path::new(v.pose_arg).file_stem().map_or_else(
+        || v.pose_arg.to_string(),
+        |n| n.to_string_lossy().into_owned(),
+    );
+    let file_name = v
+        .written
+        .file_name()
+        .map_or_else(String::new, |n| n.to_string_lossy().into_owned());
+    let deg = |a: f64| a.to_degrees();
+    let angles_deg = v.pose.angles.map(|a| a.map(deg));
+    let posed = posed_skeleton(&v.hand.skeleton, &link_transforms(&v.hand.skeleton, v.pose));
+    let (origin, [dorsal, radial, distal]) = posed.hand_directions();
+    let mut facts = vec![
+        ("pose".to_string(), v.pose_arg.to_string()),
+        ("written".to_string(), file_name.clone()),
+        (
+            "angles".to_string(),
+            if v.resolved {
+                "clamped to the limits, then given way where the digits would enter each other"
+            } else {
+                "as given, clamped to the limits"
+            }
+            .to_string(),
+        ),
+        (
+            "deepest finger-finger penetration".to_string(),
+            format!("{:.1} mm", v.penetration_mm),
+        ),
+    ];
+    if let Some(w) = v.worst_volume_change {
+        facts.push((
+            "worst finger segment volume change".to_string(),
+            format!("{:+.1} %", 100.0 * w),
+        ));
+    }
+    if let Some(n) = v.inverted_tets {
+        facts.push(("inverted tetrahedra".to_string(), n.to_string()));
+    }
+    let fmt_angle = |j: Joint, k: usize| {
+        if k < j.dof() {
+            format!("{:.1}", angles_deg[j.index()][k])
+        } else {
+            String::new()
+        }
+    };
+    ViewPage {
+        title: format!("pose: {pose_name} ({file_name})"),
+        kind: "pose",
+        glbs: vec![],
+        part_nodes: vec![],
+        legend: None,
+        facts,
+        tables: vec![ViewTable {
+            title: "joint angles as written (degrees)".into(),
+            columns: ["joint", "flexion", "abduction", "axial"]
+                .map(String::from)
+                .to_vec(),
+            rows: Joint::ALL
+                .iter()
+                .map(|&j| {
+                    vec![
+                        j.name().to_string(),
+                        fmt_angle(j, 0),
+                        fmt_angle(j, 1),
+                        fmt_angle(j, 2),
+                    ]
+                })
+                .collect(),
+        }],
+        frame: Some(ViewFrame {
+            origin,
+            dorsal,
+            radial,
+            distal,
+        }),
+        view: None,
+        part_opacity: None,
+        rig: Some(ViewRig {
+            rest: v.hand.skin.clone(),
+            weights: v.hand.weights.clone(),
+            skeleton: v.hand.skeleton.clone(),
+            root: v.pose.root,
+            angles_deg,
+            shown: v.shown.skin.clone(),
+            shown_label: format!("{file_name} as written: {}", v.shown.how),
+            live_label: "the sliders' angles, dual-quaternion skinned by the toolkit's own \
+                         skinning (as `ergohand pose --keep-angles --plain-skinning` writes an \
+                         .obj: without the segment-volume correction and without keeping the \
+                         digits apart)"
+                .to_string(),
+        }),
+    }
 }
 
 #[cfg(test)]
@@ -263,6 +465,7 @@ mod tests {
     use crate::anatomy::Side;
     use crate::pose::{named_pose, read_pose_file};
     use crate::template::load_template;
+    use crate::validate::view_page::{view_html, ViewFrame, ViewPage, ViewRig, ViewTable};
 
     /// `ergohand pose` end to end on a `reconstruct`-style folder holding the template: a built-in
     /// pose to GLB (read back: skinned, joints posed) and a pose file to OBJ (the DQS posed skin),

@@ -6,7 +6,11 @@
 //! and the viewer is `assets/viewer/README.md`.
 
 use super::report_html::{base64, esc};
-use crate::geometry::{Point, Vec3};
+use crate::anatomy::{Joint, Link};
+use crate::geometry::{Point, TriMesh, Vec3};
+use crate::skeleton::{joint_limits_deg, Skeleton};
+use crate::template::LinkWeights;
+use nalgebra::Isometry3;
 use serde::Serialize;
 
 /// The page template (placeholders `{{TITLE}}`, `{{DATA_JSON}}`, `{{GLB_SCRIPTS}}`,
@@ -80,6 +84,33 @@ pub struct ViewFrame {
     pub distal: Vec3,
 }
 
+/// A skinned hand that the page poses itself, with one slider per joint angle within the
+/// anatomical limits ([`joint_limits_deg`]): the page first shows `shown` (the geometry the
+/// command wrote) and, once a slider moves, the rest skin posed by the toolkit's own
+/// forward kinematics ([`crate::skeleton::forward_kinematics::link_transforms`]) and
+/// dual-quaternion skinning ([`crate::pose::SkinBinding::dual_quaternion`]), ported to the page
+/// (`assets/viewer/src/viewer.js`, `rig.js`; `validation/tools/check_view.sh --rig` checks that
+/// the two agree).
+#[derive(Clone, Debug)]
+pub struct ViewRig {
+    /// The skin in the reference posture, mm.
+    pub rest: TriMesh,
+    /// Per vertex of `rest`, its `(link, weight)` pairs in the order the toolkit blends them.
+    pub weights: LinkWeights,
+    /// The link model: joint centres and frames in the reference posture.
+    pub skeleton: Skeleton,
+    /// The forearm's rigid motion from the reference posture.
+    pub root: Isometry3<f64>,
+    /// The angles `shown` was posed with, degrees, in [`Joint::ALL`] order.
+    pub angles_deg: [[f64; 3]; 16],
+    /// What the command wrote, mm, one point per vertex of `rest`.
+    pub shown: Vec<Point>,
+    /// What `shown` is (how it was posed).
+    pub shown_label: String,
+    /// What the sliders show.
+    pub live_label: String,
+}
+
 /// Everything a page shows.
 #[derive(Clone, Debug)]
 pub struct ViewPage {
@@ -99,6 +130,8 @@ pub struct ViewPage {
     pub view: Option<&'static str>,
     /// The part's opacity at first, 0-1 (`None`: opaque).
     pub part_opacity: Option<f64>,
+    /// A hand the page poses with joint sliders.
+    pub rig: Option<ViewRig>,
 }
 
 #[derive(Serialize)]
@@ -118,6 +151,130 @@ struct Data<'a> {
     view: Option<&'static str>,
     #[serde(skip_serializing_if = "Option::is_none")]
     part_opacity: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    rig: Option<RigEntry<'a>>,
+}
+
+/// The rig's JSON part; its arrays are in the binary element `bin` (little endian, each
+/// array at `[byte offset, element count]`).
+#[derive(Serialize)]
+struct RigEntry<'a> {
+    bin: &'static str,
+    units: &'static str,
+    vertices: usize,
+    /// `f32` xyz per vertex, the reference posture.
+    rest: [usize; 2],
+    /// `f32` xyz per vertex, the written geometry.
+    shown: [usize; 2],
+    /// `u32` three per triangle.
+    faces: [usize; 2],
+    /// `u32`, vertices + 1: vertex `i`'s weights are entries `offsets[i]..offsets[i + 1]`.
+    offsets: [usize; 2],
+    /// `f32` per entry.
+    weights: [usize; 2],
+    /// `u8` per entry: the link.
+    links: [usize; 2],
+    link_names: Vec<&'static str>,
+    joints: Vec<RigJoint>,
+    /// The forearm's motion: unit quaternion `[w, x, y, z]` and translation, mm.
+    root: RigRoot,
+    shown_label: &'a str,
+    live_label: &'a str,
+}
+
+#[derive(Serialize)]
+struct RigRoot {
+    rotation: [f64; 4],
+    translation: [f64; 3],
+}
+
+/// One joint of the rig: its rotation is the product over its DOFs of rotations by the angle
+/// about `axes[k]` (the frame's axes with the sign that makes a positive angle the anatomical
+/// motion), applied about `centre`, between `parent` and `child` links.
+#[derive(Serialize)]
+struct RigJoint {
+    name: &'static str,
+    parent: usize,
+    child: usize,
+    centre: [f64; 3],
+    axes: Vec<[f64; 3]>,
+    dof_names: Vec<&'static str>,
+    limits_deg: Vec<[f64; 2]>,
+    deg: Vec<f64>,
+}
+
+/// The rig's JSON and its binary arrays.
+fn rig_entry(rig: &ViewRig) -> (RigEntry<'_>, Vec<u8>) {
+    let mut bin = Vec::new();
+    let push_f32 = |bin: &mut Vec<u8>, values: &mut dyn Iterator<Item = f64>| {
+        let start = bin.len();
+        let mut n = 0;
+        for v in values {
+            bin.extend_from_slice(&(v as f32).to_le_bytes());
+            n += 1;
+        }
+        [start, n]
+    };
+    let xyz = |pts: &[Point]| pts.iter().flat_map(|p| [p.x, p.y, p.z]).collect::<Vec<_>>();
+    let rest = push_f32(&mut bin, &mut xyz(&rig.rest.vertices).into_iter());
+    let shown = push_f32(&mut bin, &mut xyz(&rig.shown).into_iter());
+    let push_u32 = |bin: &mut Vec<u8>, values: &[u32]| {
+        let start = bin.len();
+        for v in values {
+            bin.extend_from_slice(&v.to_le_bytes());
+        }
+        [start, values.len()]
+    };
+    let faces: Vec<u32> = rig.rest.faces.iter().flatten().map(|&i| i as u32).collect();
+    let faces = push_u32(&mut bin, &faces);
+    let mut offsets = vec![0u32];
+    for w in &rig.weights {
+        offsets.push(offsets[offsets.len() - 1] + w.len() as u32);
+    }
+    let offsets = push_u32(&mut bin, &offsets);
+    let weights = push_f32(&mut bin, &mut rig.weights.iter().flatten().map(|&(_, w)| w));
+    let links = [bin.len(), weights[1]];
+    bin.extend(rig.weights.iter().flatten().map(|&(l, _)| l as u8));
+    let sk = &rig.skeleton;
+    let joints = Joint::ALL
+        .iter()
+        .map(|&j| {
+            let (jf, s, dof) = (sk.joint(j), sk.signs(j), j.dof());
+            let axes = [jf.x(), jf.y(), jf.z()];
+            let limits = joint_limits_deg(j);
+            RigJoint {
+                name: j.name(),
+                parent: j.parent_link().index(),
+                child: j.child_link().index(),
+                centre: sk.centre(j).coords.into(),
+                axes: (0..dof).map(|k| (axes[k] * s[k]).into()).collect(),
+                dof_names: ["flexion", "abduction", "axial"][..dof].to_vec(),
+                limits_deg: limits[..dof].to_vec(),
+                deg: rig.angles_deg[j.index()][..dof].to_vec(),
+            }
+        })
+        .collect();
+    let q = rig.root.rotation.quaternion();
+    let entry = RigEntry {
+        bin: "ergohand-bin-0",
+        units: "mm",
+        vertices: rig.rest.vertices.len(),
+        rest,
+        shown,
+        faces,
+        offsets,
+        weights,
+        links,
+        link_names: Link::ALL.iter().map(|l| l.name()).collect(),
+        joints,
+        root: RigRoot {
+            rotation: [q.w, q.i, q.j, q.k],
+            translation: rig.root.translation.vector.into(),
+        },
+        shown_label: &rig.shown_label,
+        live_label: &rig.live_label,
+    };
+    (entry, bin)
 }
 
 #[derive(Serialize)]
@@ -137,6 +294,8 @@ struct FrameEntry {
 
 /// The page's HTML.
 pub fn view_html(page: &ViewPage) -> String {
+    let rig = page.rig.as_ref().map(rig_entry);
+    let rig_bin = rig.as_ref().map(|(_, bin)| base64(bin));
     let to_m = |p: &Point| [p.x / 1000.0, p.y / 1000.0, p.z / 1000.0];
     let dir = |v: &Vec3| {
         let u = v.normalize();
@@ -172,6 +331,7 @@ pub fn view_html(page: &ViewPage) -> String {
         }),
         view: page.view,
         part_opacity: page.part_opacity,
+        rig: rig.map(|(entry, _)| entry),
     };
     // Every `<` escaped: no text of the data can end or reopen a script element.
     let json = serde_json::to_string(&data)
@@ -187,6 +347,11 @@ pub fn view_html(page: &ViewPage) -> String {
                 base64(&g.bytes)
             )
         })
+        .chain(rig_bin.map(|b| {
+            format!(
+                "<script id=\"ergohand-bin-0\" type=\"application/octet-stream\">{b}</script>\n"
+            )
+        }))
         .collect();
     let title = esc(&page.title);
     fill(TEMPLATE, |name| match name {
@@ -259,6 +424,7 @@ mod tests {
             }),
             view: Some("palmar"),
             part_opacity: None,
+            rig: None,
         };
         let html = view_html(&page);
         // The data element holds no `<` at all, and parses back to the same strings.

@@ -13,7 +13,14 @@
 //     window.ergohandView.error);
 //   - a blank canvas: fewer than 0.5 % (and at least 2000) of the canvas' pixels differing from
 //     its background, counted here from the canvas itself (drawn into a 2-D canvas), not
-//     taken from the page's own report; or no mesh at all.
+//     taken from the page's own report; or no mesh at all;
+//   - a page with joint sliders (a posed hand) where moving one slider, through the page's own
+//     range input, changes fewer than 0.2 % (and 1000) of the canvas' pixels.
+// With --agree-obj, a page X.view.html with joint sliders is also compared with X.obj beside
+// it: the page re-skins the hand at the page's angles with its port of the toolkit's forward
+// kinematics and dual-quaternion skinning, and fails unless every vertex is within 0.01 mm of
+// the OBJ's (which must have been written by `ergohand pose --keep-angles --plain-skinning`:
+// check_pose_pages.sh makes such pairs).
 //
 // Environment: CHROMIUM (the browser binary, default /usr/bin/chromium); VIEW_CHECK_DIR (where
 // `npm install playwright-core` was run, default: the current folder).
@@ -28,6 +35,9 @@ const READY_TIMEOUT_MS = 30000;
 const SETTLE_MS = 500; // after ready, for late errors (e.g. in the first animation frames)
 const MIN_FRACTION = 0.005;
 const MIN_PIXELS = 2000;
+const SLIDER_MIN_FRACTION = 0.002;
+const SLIDER_MIN_PIXELS = 1000;
+const AGREE_MM = 0.01;
 
 // WebGL in headless Chromium on a machine without a GPU: ANGLE on SwiftShader (Chromium's
 // bundled CPU Vulkan), asked for explicitly; without --enable-unsafe-swiftshader, Chromium
@@ -40,13 +50,19 @@ const QUIET_FLAGS = [
 
 let args = process.argv.slice(2);
 let shotDir = null;
-if (args[0] === "--screenshot") {
-  shotDir = args[1];
-  args = args.slice(2);
-  fs.mkdirSync(shotDir, { recursive: true });
+let agreeObj = false;
+for (;;) {
+  if (args[0] === "--screenshot") {
+    shotDir = args[1];
+    args = args.slice(2);
+    fs.mkdirSync(shotDir, { recursive: true });
+  } else if (args[0] === "--agree-obj") {
+    agreeObj = true;
+    args = args.slice(1);
+  } else break;
 }
 if (args.length === 0) {
-  console.error("usage: check_view.mjs [--screenshot DIR] PAGE.html [MORE.html ...]");
+  console.error("usage: check_view.mjs [--screenshot DIR] [--agree-obj] PAGE.html [MORE.html ...]");
   process.exit(2);
 }
 
@@ -93,6 +109,99 @@ function countCanvas() {
   return { width: w, height: h, background: bg, nonBackground: k };
 }
 
+// In the page: the canvas' pixels as RGBA bytes, kept on window for pixelsChanged.
+function keepCanvas() {
+  const c = document.querySelector("canvas");
+  const c2 = document.createElement("canvas");
+  c2.width = c.width; c2.height = c.height;
+  const ctx = c2.getContext("2d", { willReadFrequently: true });
+  ctx.drawImage(c, 0, 0);
+  window.__checkViewPixels = ctx.getImageData(0, 0, c.width, c.height).data;
+}
+
+// In the page: how many pixels differ (by more than 8 in a channel) from those keepCanvas kept.
+function pixelsChanged() {
+  const before = window.__checkViewPixels;
+  const c = document.querySelector("canvas");
+  const c2 = document.createElement("canvas");
+  c2.width = c.width; c2.height = c.height;
+  const ctx = c2.getContext("2d", { willReadFrequently: true });
+  ctx.drawImage(c, 0, 0);
+  const now = ctx.getImageData(0, 0, c.width, c.height).data;
+  if (!before || before.length !== now.length) return { error: "the canvas changed size" };
+  let k = 0;
+  for (let i = 0; i < now.length; i += 4) {
+    if (Math.abs(now[i] - before[i]) > 8 || Math.abs(now[i + 1] - before[i + 1]) > 8 || Math.abs(now[i + 2] - before[i + 2]) > 8) k++;
+  }
+  return { changed: k, total: c.width * c.height };
+}
+
+// In the page: move one joint slider through its range input (the index MCP's flexion, else
+// the first) to the end of its range farther from where it is, as a user's drag does.
+function moveASlider() {
+  const input = document.getElementById("eh-joint-I_MCP-0") || document.querySelector("#eh-joints input[type=range]");
+  if (!input) return { error: "no joint slider in the page" };
+  const lo = Number(input.min), hi = Number(input.max), v = Number(input.value);
+  const to = v - lo > hi - v ? lo : hi;
+  input.value = String(to);
+  input.dispatchEvent(new Event("input", { bubbles: true }));
+  return { id: input.id, from: v, to };
+}
+
+const nextFrames = () => new Promise((r) => requestAnimationFrame(() => requestAnimationFrame(r)));
+
+// The vertices of an OBJ file, as written (mm).
+function objVertices(file) {
+  const out = [];
+  for (const line of fs.readFileSync(file, "utf8").split("\n")) {
+    if (line.startsWith("v ")) {
+      const [, x, y, z] = line.trim().split(/\s+/);
+      out.push(Number(x), Number(y), Number(z));
+    }
+  }
+  return out;
+}
+
+// A page with joint sliders: a moved slider must change the picture; with --agree-obj, the
+// page's own skinning must reproduce the OBJ beside it.
+async function checkRig(page, file, problems, result) {
+  await page.evaluate(keepCanvas);
+  const moved = await page.evaluate(moveASlider);
+  if (moved.error) {
+    problems.push(moved.error);
+    return;
+  }
+  await page.evaluate(nextFrames);
+  const diff = await page.evaluate(pixelsChanged);
+  if (diff.error) problems.push(diff.error);
+  else {
+    const need = Math.max(SLIDER_MIN_PIXELS, Math.ceil(SLIDER_MIN_FRACTION * diff.total));
+    result.sliderPixels = diff.changed;
+    result.slider = moved;
+    if (diff.changed < need) problems.push(`moving ${moved.id} from ${moved.from} to ${moved.to} changed ${diff.changed} pixels (need ${need})`);
+  }
+  await page.evaluate(() => window.ergohandView.showWritten());
+  if (!agreeObj) return;
+  const obj = file.replace(/\.view\.html?$/i, ".obj");
+  if (obj === file || !fs.existsSync(obj)) {
+    problems.push(`--agree-obj: no ${path.basename(obj)} beside the page`);
+    return;
+  }
+  const want = objVertices(obj);
+  const got = await page.evaluate(() => { window.ergohandView.reskin(); return window.ergohandView.rigPositionsMm(); });
+  if (!got || got.length !== want.length) {
+    problems.push(`--agree-obj: the page's hand has ${got ? got.length / 3 : 0} vertices, ${path.basename(obj)} ${want.length / 3}`);
+    return;
+  }
+  let worst = 0, at = 0;
+  for (let i = 0; i < want.length; i += 3) {
+    const d = Math.hypot(got[i] - want[i], got[i + 1] - want[i + 1], got[i + 2] - want[i + 2]);
+    if (d > worst) { worst = d; at = i / 3; }
+  }
+  result.agreeMm = worst;
+  if (!(worst <= AGREE_MM)) problems.push(`--agree-obj: vertex ${at} is ${worst.toFixed(4)} mm from ${path.basename(obj)} (limit ${AGREE_MM} mm)`);
+}
+
 async function check(file) {
   const problems = [];
   const work = fs.mkdtempSync(path.join(os.tmpdir(), "check-view-"));
@@ -120,7 +229,7 @@ async function check(file) {
     await page.waitForTimeout(SETTLE_MS);
     const hook = await page.evaluate(() => {
       const v = window.ergohandView;
-      return { ready: !!v.ready, error: v.error || null, meshes: v.meshes, triangles: v.triangles, loadMs: v.loadMs, nonBackgroundPixels: v.nonBackgroundPixels };
+      return { ready: !!v.ready, error: v.error || null, meshes: v.meshes, triangles: v.triangles, loadMs: v.loadMs, nonBackgroundPixels: v.nonBackgroundPixels, joints: (v.joints || []).length };
     });
     result = { hook, wallMs };
     if (hook.error) problems.push(`the page reports: ${hook.error}`);
@@ -137,6 +246,7 @@ async function check(file) {
         if (k < need) problems.push(`blank canvas: ${k} non-background pixels of ${px.width}x${px.height} (need ${need})`);
       }
       if (shotDir) await page.screenshot({ path: path.join(shotDir, path.basename(file).replace(/\.html?$/i, "") + ".png") });
+      if (hook.joints > 0) await checkRig(page, file, problems, result);
     }
   } catch (e) {
     const msg = e.message.split("\n")[0];
@@ -163,7 +273,9 @@ for (const file of args) {
   } else {
     const h = result.hook;
     console.log(`check_view: ${file}: ok: ${h.meshes} meshes, ${h.triangles} triangles, ${result.nonBackground} of ` +
-      `${result.px.width * result.px.height} pixels drawn, ready ${h.loadMs} ms after navigation (${result.wallMs} ms wall)`);
+      `${result.px.width * result.px.height} pixels drawn, ready ${h.loadMs} ms after navigation (${result.wallMs} ms wall)` +
+      (h.joints > 0 ? `; ${h.joints} joints, a slider changed ${result.sliderPixels} pixels` : "") +
+      (result.agreeMm !== undefined ? `; the page's skinning within ${result.agreeMm.toExponential(2)} mm of the OBJ` : ""));
   }
 }
 await browser.close();

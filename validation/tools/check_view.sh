@@ -7,7 +7,9 @@
 # from the background, counted from the canvas itself). check_view.mjs beside this script does
 # the work with playwright-core driving the system's Chromium.
 #
-#   bash validation/tools/check_view.sh [--screenshot DIR] PAGE.html [MORE.html ...]
+#   bash validation/tools/check_view.sh [--screenshot DIR] [--agree-obj] PAGE.html [MORE.html ...]
+#
+# (--agree-obj: see check_view.mjs; check_pose_pages.sh uses it)
 #
 # WebGL without a GPU: Chromium renders WebGL on ANGLE's SwiftShader backend (a CPU Vulkan
 # that ships with Chromium) when started with
@@ -25,7 +27,7 @@
 set -euo pipefail
 
 if [ "$#" -lt 1 ]; then
-  echo "usage: $0 [--screenshot DIR] PAGE.html [MORE.html ...]" >&2
+  echo "usage: $0 [--screenshot DIR] [--agree-obj] PAGE.html [MORE.html ...]" >&2
   exit 2
 fi
 

@@ -10,11 +10,13 @@ import {
   AnimationMixer,
   Box3,
   BufferAttribute,
+  BufferGeometry,
   Color,
   DirectionalLight,
   HemisphereLight,
   Mesh,
   MeshBasicMaterial,
+  MeshStandardMaterial,
   PerspectiveCamera,
   Raycaster,
   Scene,
@@ -26,11 +28,13 @@ import {
 } from "three";
 import { GLTFLoader } from "three/examples/jsm/loaders/GLTFLoader.js";
 import { OrbitControls } from "three/examples/jsm/controls/OrbitControls.js";
+import { decodeRig, dualQuaternionSkin, linkTransforms } from "./rig.js";
 
 const T0 = performance.now();
 const BACKGROUND = "#f3f4f6";
 const BACKGROUND_RGB = [0xf3, 0xf4, 0xf6];
 const MARKER_COLOUR = 0xe6007e;
+const SKIN_COLOUR = 0xd9b8a0;
 
 // matplotlib's viridis at 0, 0.1, ..., 1 (sRGB), enough stops for a CSS gradient.
 const COLORMAPS = {
@@ -341,6 +345,7 @@ class Viewer {
       script.textContent = ""; // the base64 text is not needed any more
       this.addGltf(gltf, entry, new Set([...globalParts, ...(Array.isArray(entry.parts) ? entry.parts : [])]));
     }
+    if (this.data.rig && typeof this.data.rig === "object") this.addRig(this.data.rig);
     this.scene.updateMatrixWorld(true);
     for (const m of this.meshes) {
       if (m.mesh.isSkinnedMesh) {
@@ -398,6 +403,73 @@ class Viewer {
       mixer.setTime(0);
       this.mixers.push(mixer);
     }
+  }
+
+  // A hand the page poses itself (data.rig): shown as written, re-skinned when a joint moves.
+  addRig(rig) {
+    const script = byId(rig.bin);
+    if (!script) throw new Error(`rig: no element with id "${rig.bin}" (its arrays) in the page`);
+    if (!Array.isArray(rig.joints) || !Array.isArray(rig.link_names) || !rig.root) throw new Error("rig: joints, link_names or root missing");
+    const arrays = decodeRig(rig, decodeBase64(script.textContent));
+    script.textContent = "";
+    const n = arrays.n;
+    const geometry = new BufferGeometry();
+    geometry.setAttribute("position", new BufferAttribute(new Float32Array(3 * n), 3));
+    geometry.setIndex(new BufferAttribute(arrays.faces, 1));
+    const mesh = new Mesh(geometry, new MeshStandardMaterial({ color: SKIN_COLOUR, roughness: 0.75, metalness: 0 }));
+    mesh.name = "hand";
+    const rec = { mesh, gltf: null, name: "hand", part: false, value: null };
+    mesh.userData.ergohand = rec;
+    this.meshes.push(rec);
+    this.scene.add(mesh);
+    this.rig = {
+      data: rig,
+      arrays,
+      written: rig.joints.map((j) => j.deg.map(Number)),
+      deg: rig.joints.map((j) => j.deg.map(Number)),
+      mm: new Float64Array(3 * n), // the live skin, mm
+      live: false,
+    };
+    this.showWritten();
+  }
+
+  // Put `mm` (xyz per vertex, millimetres) on the rig's mesh.
+  setRigPositions(mm) {
+    const mesh = this.meshes.find((r) => r.mesh.name === "hand" && r.gltf === null).mesh;
+    const pos = mesh.geometry.getAttribute("position");
+    for (let i = 0; i < mm.length; i++) pos.array[i] = mm[i] / this.scale;
+    pos.needsUpdate = true;
+    mesh.geometry.computeVertexNormals();
+    mesh.geometry.computeBoundingBox();
+    mesh.geometry.computeBoundingSphere();
+    if (this.picked && this.picked.rec === mesh.userData.ergohand) this.clearPick();
+    this.requestRender();
+  }
+
+  // The geometry the command wrote, at its angles.
+  showWritten() {
+    const r = this.rig;
+    r.deg = r.written.map((d) => d.slice());
+    r.live = false;
+    this.setRigPositions(r.arrays.shown);
+    if (this.onRig) this.onRig();
+  }
+
+  // The rest skin skinned at the current angles by the ported forward kinematics and DQS.
+  reskin() {
+    const r = this.rig;
+    dualQuaternionSkin(r.arrays, linkTransforms(r.data, r.deg), r.mm);
+    r.live = true;
+    this.setRigPositions(r.mm);
+    if (this.onRig) this.onRig();
+  }
+
+  // Set one joint angle (degrees, clamped to its limits) and re-skin.
+  setJointAngle(k, dof, deg) {
+    const j = this.rig.data.joints[k];
+    const [lo, hi] = j.limits_deg[dof];
+    this.rig.deg[k][dof] = Math.min(hi, Math.max(lo, Number(deg) || 0));
+    this.reskin();
   }
 
   // world box of every visible mesh
@@ -666,6 +738,52 @@ function buildToolbar(viewer, data) {
   }
 }
 
+const DOF_SHORT = { flexion: "flex", abduction: "abd", axial: "rot" };
+const DIGITS = [["WRIST", "wrist"], ["T_", "thumb"], ["I_", "index"], ["M_", "middle"], ["R_", "ring"], ["L_", "little"]];
+
+// One slider per joint angle, grouped by digit, and what the hand shows now.
+function buildJoints(viewer) {
+  const rig = viewer.rig;
+  if (!rig) return;
+  const box = el("section", { id: "eh-joints" });
+  const facts = byId("eh-facts");
+  if (facts) facts.before(box); else byId("eh-readout").after(box);
+  const shown = el("div", { class: "eh-readout-body", id: "eh-rig-shown" });
+  const written = el("button", { type: "button", id: "eh-rig-written" }, "as written");
+  const rest = el("button", { type: "button", id: "eh-rig-rest" }, "reference posture");
+  box.append(el("h2", null, "joints (degrees)"), el("div", { class: "eh-group" }, written, rest), shown);
+  const inputs = [];
+  for (const [prefix, label] of DIGITS) {
+    const group = el("details", prefix === "I_" ? { open: "" } : null, el("summary", null, label));
+    rig.data.joints.forEach((j, k) => {
+      if (!j.name.startsWith(prefix)) return;
+      j.dof_names.forEach((dofName, d) => {
+        const [lo, hi] = j.limits_deg[d];
+        const input = el("input", { type: "range", id: `eh-joint-${j.name}-${d}`, min: String(lo), max: String(hi), step: "0.5", value: String(rig.deg[k][d]) });
+        const value = el("span", { class: "eh-time-label" });
+        input.addEventListener("input", () => viewer.setJointAngle(k, d, Number(input.value)));
+        inputs.push({ input, value, k, d });
+        group.append(el("div", { class: "eh-entry", title: `${j.name} ${dofName}: ${lo} to ${hi}°` },
+          el("span", { style: "min-width:7.5em" }, `${j.name} ${DOF_SHORT[dofName] || dofName}`), input, value));
+      });
+    });
+    if (group.children.length > 1) box.append(group);
+  }
+  written.addEventListener("click", () => viewer.showWritten());
+  rest.addEventListener("click", () => {
+    rig.deg = rig.deg.map((d) => d.map(() => 0));
+    viewer.reskin();
+  });
+  viewer.onRig = () => {
+    for (const { input, value, k, d } of inputs) {
+      input.value = String(rig.deg[k][d]);
+      value.textContent = rig.deg[k][d].toFixed(1) + "°";
+    }
+    shown.textContent = "shown: " + (rig.live ? rig.data.live_label : rig.data.shown_label);
+  };
+  viewer.onRig();
+}
+
 function buildLegend(legend) {
   const box = byId("eh-legend");
   if (!box) return;
@@ -764,6 +882,7 @@ async function main() {
     buildReadout(viewer);
     await viewer.load();
     buildToolbar(viewer, data);
+    buildJoints(viewer);
     let t = performance.now();
     // The output may name its first view (a grasp: the palm, where the contacts are) and how
     // much of the part shows at first.
@@ -815,6 +934,24 @@ async function main() {
         }
         return false;
       },
+      // the rig: its joints ({name, dof_names, limits_deg}), setJoint(name, [deg...]) (true
+      // when the page has that joint), the shown skin in mm, re-skin at the current angles,
+      // back to the written geometry
+      joints: viewer.rig ? viewer.rig.data.joints.map((j) => ({ name: j.name, dof_names: j.dof_names, limits_deg: j.limits_deg })) : [],
+      setJoint(name, deg) {
+        const k = viewer.rig ? viewer.rig.data.joints.findIndex((j) => j.name === name) : -1;
+        if (k < 0) return false;
+        const j = viewer.rig.data.joints[k];
+        deg.forEach((v, d) => {
+          if (d < j.limits_deg.length) viewer.rig.deg[k][d] = Math.min(j.limits_deg[d][1], Math.max(j.limits_deg[d][0], Number(v) || 0));
+        });
+        viewer.reskin();
+        return true;
+      },
+      rigAngles: () => (viewer.rig ? viewer.rig.deg.map((d) => d.slice()) : null),
+      rigPositionsMm: () => (viewer.rig ? Array.from(viewer.rig.live ? viewer.rig.mm : viewer.rig.arrays.shown) : null),
+      reskin: () => { if (viewer.rig) viewer.reskin(); return !!viewer.rig; },
+      showWritten: () => { if (viewer.rig) viewer.showWritten(); return !!viewer.rig; },
       setPartHidden: (h) => { viewer.setPartHidden(!!h); if (viewer.controlsDom) viewer.controlsDom.hide.checked = !!h; },
       view: (name) => viewer.view(name),
       pick: (x, y) => viewer.pickAt(x, y),
