@@ -2,7 +2,9 @@
 //! second on one core with linear blend skinning): forward kinematics plus skinning per pose,
 //! into a reused buffer as grasp search does; dual-quaternion skinning for comparison; and the
 //! one-off bone heat weights; and a baked pose with the segment-volume correction (DQS of skin
-//! and the 157k-tet mesh's nodes, Newton on the segment volumes, boundary placement).
+//! and the 157k-tet mesh's nodes, Newton on the segment volumes, boundary placement); and
+//! writing the pose's 3-D page (the rig's arrays as base64, the data as JSON, the viewer
+//! inlined).
 
 use criterion::{criterion_group, criterion_main, Criterion};
 use ergohand::anatomy::Side;
@@ -39,6 +41,33 @@ fn pose_bench(c: &mut Criterion) {
             let tr = link_transforms(&h.skeleton, black_box(&pose));
             black_box(binding.dual_quaternion(&tr).len())
         })
+    });
+    g.bench_function("view_page_html_with_rig_18514_vertices", |b| {
+        use ergohand::validate::view_page::{view_html, ViewPage, ViewRig};
+        let shown = binding.dual_quaternion(&link_transforms(&h.skeleton, &pose));
+        let page = ViewPage {
+            title: "pose: fist".into(),
+            kind: "pose",
+            glbs: vec![],
+            part_nodes: vec![],
+            legend: None,
+            facts: vec![],
+            tables: vec![],
+            frame: None,
+            view: None,
+            part_opacity: None,
+            rig: Some(ViewRig {
+                rest: h.skin.clone(),
+                weights: h.weights.clone(),
+                skeleton: h.skeleton.clone(),
+                root: pose.root,
+                angles_deg: pose.angles.map(|a| a.map(f64::to_degrees)),
+                shown,
+                shown_label: "as written".into(),
+                live_label: "live".into(),
+            }),
+        };
+        b.iter(|| black_box(view_html(black_box(&page)).len()))
     });
     g.sample_size(10);
     g.bench_function("bone_heat_weights_18514_vertices", |b| {

@@ -440,7 +440,8 @@ fn pose_view_page(v: &PoseView) -> ViewPage {
             radial,
             distal,
         }),
-        view: None,
+        // From the thumb's side the flexion of every finger shows.
+        view: Some("radial"),
         part_opacity: None,
         rig: Some(ViewRig {
             rest: v.hand.skin.clone(),
