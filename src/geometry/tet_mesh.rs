@@ -55,7 +55,9 @@ impl Stats {
 pub struct TetQuality {
     /// Number of tetrahedra.
     pub n_tets: usize,
-    /// Per tetrahedron, its smallest dihedral angle in degrees.
+    /// Per tetrahedron, its smallest dihedral angle in degrees, negative for an inverted (or
+    /// flat) tetrahedron, so that `min_dihedral_deg.min < 0` shows an inverted element (the
+    /// unsigned angles of a mirrored tetrahedron are those of a good one).
     pub min_dihedral_deg: Stats,
     /// Per tetrahedron, its largest dihedral angle in degrees.
     pub max_dihedral_deg: Stats,
@@ -254,6 +256,11 @@ impl TetMesh {
                 let p = self.corners(t);
                 let a = dihedral_angles(p);
                 let lo = a.iter().copied().fold(f64::INFINITY, f64::min).to_degrees();
+                let lo = if tet_signed_volume(&p[0], &p[1], &p[2], &p[3]) > 0.0 {
+                    lo
+                } else {
+                    -lo
+                };
                 let hi = a.iter().copied().fold(0.0, f64::max).to_degrees();
                 (lo, hi, radius_edge_ratio(p))
             })
@@ -311,6 +318,25 @@ mod tests {
         for x in &a[3..] {
             assert!((x - (1.0 / 3f64.sqrt()).acos().to_degrees()).abs() < 1e-9);
         }
+    }
+
+    /// A mirrored tetrahedron has the same unsigned angles as a good one; the quality's
+    /// smallest dihedral angle carries the sign of its volume, so an inverted element shows.
+    #[test]
+    fn an_inverted_tet_has_a_negative_min_dihedral() {
+        let nodes = vec![
+            Point::origin(),
+            Point::new(1.0, 0.0, 0.0),
+            Point::new(0.0, 1.0, 0.0),
+            Point::new(0.0, 0.0, 1.0),
+        ];
+        let far = (1.0 / 3f64.sqrt()).acos().to_degrees();
+        let good = TetMesh::new(nodes.clone(), vec![[0, 1, 2, 3]]).unwrap().quality();
+        assert!((good.min_dihedral_deg.min - far).abs() < 1e-9);
+        let bad = TetMesh::new(nodes, vec![[0, 2, 1, 3]]).unwrap().quality();
+        assert_eq!(bad.inverted, 1);
+        assert!((bad.min_dihedral_deg.min + far).abs() < 1e-9);
+        assert!((bad.max_dihedral_deg.max - 90.0).abs() < 1e-9);
     }
 
     #[test]
