@@ -93,7 +93,13 @@ impl ModelInputs {
         .with_model(model);
         crate::io::output_paths::check_output_dir(
             report,
-            &["metrics.json", "report.html", "report.md", "error-map.png"],
+            &[
+                "metrics.json",
+                "report.html",
+                "report.md",
+                "error-map.png",
+                super::report::VIEW_FILE,
+            ],
             "--report",
             &inputs,
         )?;

@@ -728,6 +728,8 @@ mod tests {
             validate_timings_s: Vec::new(),
             warnings: Vec::new(),
             motions: Vec::new(),
+            grasps: Vec::new(),
+            poses: Vec::new(),
             files: Vec::new(),
             thumbnail_png: None,
         }
