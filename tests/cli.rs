@@ -980,9 +980,10 @@ fn view_fact(data: &serde_json::Value, label: &str) -> String {
         .to_string()
 }
 
-/// The numbers in a text, in order ("mean 1.49 mm, SD 1.50" -> [1.49, 1.50]).
+/// The numbers of a text that stand as words, in order ("mean 1.49 mm, 95th pct 2.05" ->
+/// [1.49, 2.05]).
 fn numbers_in(text: &str) -> Vec<f64> {
-    text.split(|c: char| !(c.is_ascii_digit() || c == '.' || c == '-' || c == '+'))
+    text.split([' ', ',', '(', ')'])
         .filter_map(|w| w.trim_start_matches('+').parse().ok())
         .collect()
 }

@@ -356,12 +356,13 @@ pub fn grasp_population(
     )?;
     // The contact frequency map on the part in its own frame (as its file gives it).
     let own = part.mesh.transformed(&s.part_pose.inverse());
+    // Opened facing the place most hands touch.
     let colours = crate::validate::pages::hand_share_colours(&touched, summary.hands);
     let glb = crate::io::gltf::glb_bytes(
         &crate::io::gltf::Scene {
             meshes: vec![crate::io::gltf::SceneMesh {
                 name: "part".into(),
-                mesh: own,
+                mesh: own.clone(),
                 normals: None,
                 colors: Some(
                     colours
@@ -376,8 +377,10 @@ pub fn grasp_population(
         Units::Metres,
     )?;
     crate::io::atomic::write_bytes_atomic(&out.join("contact_frequency.glb"), &glb)?;
-    let page =
+    let mut page =
         crate::validate::pages::population_page(&summary, glb, grasped, contact.tolerance_mm);
+    page.frame = crate::validate::pages::touched_side_frame(&own, &touched);
+    page.view = page.frame.map(|_| "dorsal");
     crate::io::atomic::write_bytes_atomic(&out.join("view.html"), view_html(&page).as_bytes())?;
     log::info!(
         "grasp: {} of {} hands hold the part, {} in force closure; wrote {}",

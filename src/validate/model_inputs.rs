@@ -13,6 +13,9 @@ use crate::skeleton::record::JointRecord;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
+/// The 3-D page of the error map, beside `report.html`.
+pub const VIEW_FILE: &str = "view.html";
+
 /// Largest ratio between the bounding-box diagonals of `reference.ply` and `skin.obj` that a
 /// reference of the same hand can have (a scan cut at another place of the forearm differs by
 /// tens of percent, a wrong unit by 10 to 1000 times).
@@ -98,7 +101,7 @@ impl ModelInputs {
                 "report.html",
                 "report.md",
                 "error-map.png",
-                super::report::VIEW_FILE,
+                VIEW_FILE,
             ],
             "--report",
             &inputs,

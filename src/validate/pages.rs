@@ -410,3 +410,59 @@ pub fn population_page(
         part_opacity: None,
     }
 }
+
+/// A frame for a part's page that faces the touched side: "dorsal" (the preset the page opens
+/// on) from the part's centre towards the count-weighted centre of its touched vertices,
+/// "distal" (up on the screen) its longest bounding-box axis made square to that; `None` when
+/// nothing is touched or the two coincide.
+pub fn touched_side_frame(part: &crate::geometry::TriMesh, counts: &[u32]) -> Option<ViewFrame> {
+    use crate::geometry::{Point, Vec3};
+    let n = part.vertices.len().max(1) as f64;
+    let centre = Point::from(part.vertices.iter().map(|p| p.coords).sum::<Vec3>() / n);
+    let total: f64 = counts.iter().map(|&c| c as f64).sum();
+    if total == 0.0 {
+        return None;
+    }
+    let touched = part
+        .vertices
+        .iter()
+        .zip(counts)
+        .map(|(p, &c)| p.coords * c as f64)
+        .sum::<Vec3>()
+        / total;
+    let dorsal = (Point::from(touched) - centre).try_normalize(1e-6)?;
+    let (lo, hi) = part.bounds()?;
+    let ext = hi - lo;
+    let k = (0..3).max_by(|&a, &b| ext[a].total_cmp(&ext[b]))?;
+    let mut up = Vec3::zeros();
+    up[k] = 1.0;
+    let distal = (up - dorsal * up.dot(&dorsal)).try_normalize(1e-6)?;
+    Some(ViewFrame {
+        origin: centre,
+        dorsal,
+        radial: dorsal.cross(&distal),
+        distal,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::geometry::mesh::tests::icosphere;
+
+    /// The page faces the touched cap of a sphere stretched along z, z up; nothing touched, no
+    /// frame.
+    #[test]
+    fn the_part_page_faces_the_touched_side() {
+        let mut s = icosphere(20.0, 3);
+        for p in &mut s.vertices {
+            p.z *= 3.0;
+        }
+        let counts: Vec<u32> = s.vertices.iter().map(|p| (p.x > 10.0) as u32).collect();
+        let f = touched_side_frame(&s, &counts).unwrap();
+        assert!(f.dorsal.x > 0.99, "{:?}", f.dorsal);
+        assert!(f.distal.z.abs() > 0.99, "{:?}", f.distal);
+        assert!(f.radial.dot(&f.dorsal).abs() < 1e-9 && f.radial.dot(&f.distal).abs() < 1e-9);
+        assert!(touched_side_frame(&s, &vec![0; s.vertices.len()]).is_none());
+    }
+}

@@ -17,6 +17,7 @@ use super::joint_fit::{joint_fits, JointFit};
 use super::joint_fit_plots::{joint_fit_figures, radius_figure};
 use super::link_accuracy::{link_lengths, LinkAccuracy};
 use super::model_inputs::ModelInputs;
+pub use super::model_inputs::VIEW_FILE;
 pub use super::model_inputs::{check_reference_scale, REFERENCE_SCALE_RATIO};
 use super::subject_validation::{JointFitSummary, ReportFigures, SubjectValidation};
 use super::surface_regions::{model_regions, surface_regions, SurfaceRegions};
@@ -139,9 +140,6 @@ pub fn validate_subject_with(
     }
     Ok((v, figures))
 }
-
-/// The 3-D page of the error map, beside `report.html`.
-pub const VIEW_FILE: &str = "view.html";
 
 /// What [`measure`] found.
 struct Measured {

@@ -435,7 +435,8 @@ pub fn subject_html(
 /// 9 and 10: the grasps given to `validate` and the posed hands of the model folder, as their
 /// commands wrote them; `report` is where the page is written (links are relative to it).
 fn grasp_and_pose_sections(v: &SubjectValidation, report: &std::path::Path, b: &mut String) {
-    use super::grasp_pose_sections::{grasp_tables, pose_table, relative_link};
+    use super::grasp_pose_sections::relative_link;
+    use super::report_tables::{grasp_tables, pose_table};
     if !v.grasps.is_empty() {
         b.push_str("<section id=\"grasps\"><h2>9 · Grasps</h2><p class=\"lead\">The hand closed on a part by <code>ergohand grasp</code>: force closure, the Ferrari-Canny epsilon, the hold test in rapier (gravity from six directions), the contact area per link, and the contact picture seen from the side that carries the contacts (red: touching or inside).</p>");
         for g in &v.grasps {

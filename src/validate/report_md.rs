@@ -149,16 +149,14 @@ pub fn subject_markdown(v: &SubjectValidation, figs: &ReportFigures) -> String {
         s.push_str("\n## 9. Grasps\n\n");
         for g in &v.grasps {
             s.push_str(&format!("### {} ({})\n\n", g.folder, g.grasp_type));
-            for t in super::grasp_pose_sections::grasp_tables(g) {
+            for t in super::report_tables::grasp_tables(g) {
                 s.push_str(&table_markdown(&t));
             }
         }
     }
     if !v.poses.is_empty() {
         s.push_str("\n## 10. Posed hands\n\n");
-        s.push_str(&table_markdown(&super::grasp_pose_sections::pose_table(
-            &v.poses,
-        )));
+        s.push_str(&table_markdown(&super::report_tables::pose_table(&v.poses)));
     }
     s
 }
