@@ -152,6 +152,10 @@ enum Command {
         /// repeatable. MODEL/motions/NAME/motion.json is scored without it.
         #[arg(long = "motion", value_name = "DIR")]
         motions: Vec<PathBuf>,
+        /// A grasp output folder (holding grasp.json) to report in the grasp section;
+        /// repeatable. Posed hands of MODEL (NAME.pose.json) are reported without it.
+        #[arg(long = "grasp", value_name = "DIR")]
+        grasps: Vec<PathBuf>,
     },
     /// Pose a reconstructed hand.
     Pose {
@@ -311,10 +315,11 @@ fn main() -> ExitCode {
             report,
             suite: false,
             motions,
+            grasps,
         } => {
             let model = model.unwrap_or_else(|| subject_dir.join("out"));
             let report = report.unwrap_or_else(|| model.join("report"));
-            cli::validate_with(&subject_dir, &model, &report, &motions).map(|_| ())
+            cli::validate_with(&subject_dir, &model, &report, &motions, &grasps).map(|_| ())
         }
         Command::Pose {
             model,

@@ -326,6 +326,7 @@ fn track_the_grasp_trial(subj: &Path, model: &Path, out: &Path) {
         assert!(r.status.success(), "{}", stderr(&r));
     };
     track_grasp(o, &[]);
+    track_pages_hold_the_trial(out);
     let read = |p: &Path| -> serde_json::Value {
         serde_json::from_str(&std::fs::read_to_string(p).unwrap()).unwrap()
     };
@@ -616,6 +617,7 @@ fn reconstruct_and_validate_a_simulated_subject() {
     assert!(r.status.success(), "{}", stderr(&r));
     assert!(out.join("link_model.json").is_file() && out.join("report.json").is_file());
     validate(&subj, &out, &out.join("rep"));
+    validate_page_holds_the_error_map(&out.join("rep"));
     track_the_grasp_trial(&subj, &out, &dir.path().join("TRACK"));
     let metrics: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("rep/metrics.json")).unwrap())
@@ -842,6 +844,7 @@ fn reconstruct_and_validate_a_simulated_subject() {
     };
     let (low, full) = (surface(&out.join("rep")), surface(&rep2));
     assert!(low < 1.0 && full < 1.0, "low {low} full {full}");
+    grasp_and_pose_in_the_report(&subj, &out, dir.path());
 
     // A trial whose palm marker is unlabelled: the error names the trial and the marker.
     let toml = std::fs::read_to_string(subj.join("subject.toml")).unwrap();
@@ -938,6 +941,256 @@ fn view_page_holds_the_grasp(out: &Path, r: &serde_json::Value) {
     }
     for a in [d, ra, di] {
         assert!((dot(a, a) - 1.0).abs() < 1e-9);
+    }
+}
+
+/// A `view.html` page's data and its embedded GLBs, decoded by the `base64` crate (an
+/// independent reader of the page).
+fn read_view_page(page: &Path) -> (serde_json::Value, Vec<Vec<u8>>) {
+    let html = std::fs::read_to_string(page).unwrap();
+    let between = |start: &str| -> Option<&str> {
+        let a = html.find(start)? + start.len();
+        Some(&html[a..a + html[a..].find("</script>").unwrap()])
+    };
+    let data: serde_json::Value = serde_json::from_str(
+        between("<script id=\"ergohand-view-data\" type=\"application/json\">").unwrap(),
+    )
+    .unwrap();
+    let glbs = (0..)
+        .map_while(|i| {
+            between(&format!(
+                "<script id=\"ergohand-glb-{i}\" type=\"application/octet-stream\">"
+            ))
+            .map(|b| base64::decode(b).unwrap())
+        })
+        .collect();
+    (data, glbs)
+}
+
+/// The value of the fact `label` of a page's data.
+fn view_fact(data: &serde_json::Value, label: &str) -> String {
+    data["facts"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|f| f[0] == label)
+        .unwrap_or_else(|| panic!("fact {label}: {data}"))[1]
+        .as_str()
+        .unwrap()
+        .to_string()
+}
+
+/// The numbers of a text that stand as words, in order ("mean 1.49 mm, 95th pct 2.05" ->
+/// [1.49, 2.05]).
+fn numbers_in(text: &str) -> Vec<f64> {
+    text.split([' ', ',', '(', ')'])
+        .filter_map(|w| w.trim_start_matches('+').parse().ok())
+        .collect()
+}
+
+/// `validate`'s `view.html` beside `report.html`: kind validate, `error-map.glb` byte for byte,
+/// the legend's ramp the report's colour scale, the surface figures and the per-region table
+/// those of `metrics.json`, and a right-handed unit frame for the presets.
+fn validate_page_holds_the_error_map(report: &Path) {
+    let metrics: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(report.join("metrics.json")).unwrap()).unwrap();
+    let (data, glbs) = read_view_page(&report.join("view.html"));
+    assert_eq!(data["kind"], "validate");
+    assert_eq!(
+        glbs,
+        vec![std::fs::read(report.join("error-map.glb")).unwrap()]
+    );
+    assert_eq!(data["legend"]["unit"], "mm");
+    assert_eq!(data["legend"]["gradient"]["min"], 0.0);
+    assert_eq!(
+        data["legend"]["gradient"]["max"],
+        metrics["colour_scale_top_mm"]
+    );
+    let s = &metrics["surface"];
+    let got = numbers_in(&view_fact(&data, "skin to reference"));
+    for (g, k) in got
+        .iter()
+        .zip(["mean_mm", "sd_mm", "p95_mm", "max_mm", "n"])
+    {
+        assert!(
+            (g - s[k].as_f64().unwrap()).abs() <= 0.005,
+            "{k}: {got:?} {s}"
+        );
+    }
+    let regions = metrics["surface_regions"]["regions"].as_array().unwrap();
+    let rows = data["tables"][0]["rows"].as_array().unwrap();
+    assert_eq!(
+        rows.len(),
+        regions.len() + 1,
+        "the regions and the whole hand"
+    );
+    for (row, r) in rows.iter().zip(regions) {
+        assert_eq!(row[0], r["region"]);
+        let mean: f64 = row[2].as_str().unwrap().parse().unwrap();
+        assert!(
+            (mean - r["mean_mm"].as_f64().unwrap()).abs() <= 0.005,
+            "{row}"
+        );
+    }
+    let f = &data["frame"];
+    let v = |k: &str| -> [f64; 3] { std::array::from_fn(|i| f[k][i].as_f64().unwrap()) };
+    let (d, r, di) = (v("dorsal"), v("radial"), v("distal"));
+    let cross = [
+        d[1] * r[2] - d[2] * r[1],
+        d[2] * r[0] - d[0] * r[2],
+        d[0] * r[1] - d[1] * r[0],
+    ];
+    let dot = |a: [f64; 3], b: [f64; 3]| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+    assert!((dot(cross, di).abs() - 1.0).abs() < 1e-9, "orthonormal");
+    assert!(metrics["files"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .any(|f| f == "view.html"));
+}
+
+/// `track`'s two pages: `view.html` holds `motion.glb` and `contact_map.view.html` holds
+/// `contact_map.glb`, byte for byte; both give the trial's frames, and their contact table is
+/// `motion.json`'s contacts summed per link here.
+fn track_pages_hold_the_trial(out: &Path) {
+    let motion: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out.join("motion.json")).unwrap()).unwrap();
+    let mut per: std::collections::BTreeMap<String, (usize, f64, f64)> = Default::default();
+    for c in motion["contacts"].as_array().unwrap() {
+        let e = per
+            .entry(c["link"].as_str().unwrap().to_string())
+            .or_default();
+        let a = c["area_mm2"].as_f64().unwrap();
+        e.0 += 1;
+        e.1 += a;
+        e.2 = e.2.max(a);
+    }
+    assert!(!per.is_empty(), "the grasp touches the bottle");
+    for (page, glb, legend) in [
+        ("view.html", "motion.glb", false),
+        ("contact_map.view.html", "contact_map.glb", true),
+    ] {
+        let (data, glbs) = read_view_page(&out.join(page));
+        assert_eq!(data["kind"], "track", "{page}");
+        assert_eq!(glbs, vec![std::fs::read(out.join(glb)).unwrap()], "{page}");
+        assert_eq!(data.get("legend").is_some(), legend, "{page}");
+        let frames = numbers_in(&view_fact(&data, "frames"))[0];
+        assert_eq!(frames, motion["frames"].as_f64().unwrap(), "{page}");
+        let rows = data["tables"][0]["rows"].as_array().unwrap();
+        assert_eq!(rows.len(), per.len(), "{page}");
+        for row in rows {
+            let (n, sum, max) = per[row[0].as_str().unwrap()];
+            let cell = |k: usize| -> f64 { row[k].as_str().unwrap().parse().unwrap() };
+            assert_eq!(cell(1), n as f64, "{row}");
+            assert!((cell(2) - sum / n as f64).abs() <= 0.05, "{row}");
+            assert!((cell(3) - max).abs() <= 0.05, "{row}");
+        }
+    }
+    let (data, _) = read_view_page(&out.join("contact_map.view.html"));
+    assert_eq!(data["legend"]["unit"], "%");
+    assert_eq!(data["legend"]["gradient"]["max"], 100.0);
+}
+
+/// `validate --grasp DIR` and a pose in the model folder: the report's grasp section is the
+/// grasp's `grasp.json`, its pose section the pose's `fist.pose.json`, both in `metrics.json`
+/// and in the page (with the contact picture and the link to the grasp's 3-D page); a folder
+/// without `grasp.json` is refused naming it, before anything is written.
+fn grasp_and_pose_in_the_report(subj: &Path, model: &Path, tmp: &Path) {
+    let (s, m) = (subj.to_str().unwrap(), model.to_str().unwrap());
+    let fist = model.join("fist.glb");
+    let p = ergohand(&[
+        "pose",
+        m,
+        "--pose",
+        "fist",
+        "--out",
+        fist.to_str().unwrap(),
+        "-q",
+    ]);
+    assert!(p.status.success(), "{}", stderr(&p));
+    let pose: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(model.join("fist.pose.json")).unwrap()).unwrap();
+    assert_eq!(pose["file"], "fist.glb");
+    let g = tmp.join("G");
+    let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/bottle.toml");
+    let r = ergohand(&[
+        "grasp",
+        scene.to_str().unwrap(),
+        "--model",
+        m,
+        "--out",
+        g.to_str().unwrap(),
+        "-q",
+    ]);
+    assert!(r.status.success(), "{}", stderr(&r));
+    let rep = tmp.join("REP-G");
+    let bad = ergohand(&[
+        "validate",
+        s,
+        "--model",
+        m,
+        "--report",
+        rep.to_str().unwrap(),
+        "--grasp",
+        tmp.to_str().unwrap(),
+    ]);
+    assert_eq!(bad.status.code(), Some(1));
+    assert!(
+        error_line(&bad).contains("grasp.json"),
+        "{}",
+        error_line(&bad)
+    );
+    assert!(!rep.join("metrics.json").exists());
+    let v = ergohand(&[
+        "validate",
+        s,
+        "--model",
+        m,
+        "--report",
+        rep.to_str().unwrap(),
+        "--grasp",
+        g.to_str().unwrap(),
+        "-q",
+    ]);
+    assert!(v.status.success(), "{}", stderr(&v));
+    let metrics: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(rep.join("metrics.json")).unwrap()).unwrap();
+    let grasp: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(g.join("grasp.json")).unwrap()).unwrap();
+    let section = &metrics["grasps"][0];
+    for k in [
+        "force_closure",
+        "epsilon",
+        "holds",
+        "total_contact_area_mm2",
+        "max_penetration_mm",
+    ] {
+        assert_eq!(section[k], grasp[k], "{k}");
+    }
+    let touching: serde_json::Map<String, serde_json::Value> = grasp["contact_area_mm2"]
+        .as_object()
+        .unwrap()
+        .iter()
+        .filter(|(_, a)| a.as_f64().unwrap() > 0.0)
+        .map(|(k, a)| (k.clone(), a.clone()))
+        .collect();
+    assert_eq!(
+        section["contact_area_mm2"],
+        serde_json::Value::Object(touching)
+    );
+    assert_eq!(metrics["poses"][0], pose);
+    let html = std::fs::read_to_string(rep.join("report.html")).unwrap();
+    assert!(html.contains("9 · Grasps") && html.contains("10 · Posed hands"));
+    assert!(
+        html.contains("../G/view.html"),
+        "a relative link to the grasp's page"
+    );
+    // The contact picture is the grasp's own PNG, embedded.
+    let png = std::fs::read(g.join("contact_map.png")).unwrap();
+    assert!(html.contains(&base64::encode(&png)));
+    // The model folder as it was, for the checks after this one.
+    for f in ["fist.glb", "fist.pose.json"] {
+        std::fs::remove_file(model.join(f)).unwrap();
     }
 }
 
@@ -1308,6 +1561,37 @@ fn grasp_a_population(model: &Path, tmp: &Path) {
         Ok(3),
         "two contact pictures and the chart"
     );
+    assert!(html.contains("<a href=\"view.html\">") && html.contains("<a href=\"A/view.html\">"));
+    // The population's 3-D page: the part coloured by the share of hands touching it, written
+    // as contact_frequency.glb too, and every hand's row as population.json has it.
+    let (data, glbs) = read_view_page(&out.join("view.html"));
+    assert_eq!(data["kind"], "population");
+    assert_eq!(
+        glbs,
+        vec![std::fs::read(out.join("contact_frequency.glb")).unwrap()]
+    );
+    assert_eq!(data["legend"]["unit"], "%");
+    let rows = data["tables"][0]["rows"].as_array().unwrap();
+    for (row, o) in rows.iter().zip(outcomes) {
+        assert_eq!(row[0], o["name"]);
+        assert_eq!(row[1], if o["holds"] == true { "yes" } else { "no" });
+        let eps: f64 = row[3].as_str().unwrap().parse().unwrap();
+        assert!((eps - o["epsilon"].as_f64().unwrap()).abs() < 1e-4, "{row}");
+    }
+    // Two copies of one hand touch the same places: every part vertex is touched by none or
+    // by both (two colours, both present when the hand touches the part at all).
+    let (doc, buffers, _) = gltf::import_slice(&glbs[0]).unwrap();
+    let mut colours = std::collections::BTreeSet::new();
+    for mesh in doc.meshes() {
+        for p in mesh.primitives() {
+            let reader = p.reader(|b| Some(&buffers[b.index()]));
+            for c in reader.read_colors(0).unwrap().into_rgba_f32() {
+                colours.insert(c.map(|x| (x * 1e4).round() as i64));
+            }
+        }
+    }
+    let touched = outcomes[0]["contact_area_mm2"].as_f64().unwrap() > 0.0;
+    assert_eq!(colours.len(), 1 + touched as usize, "{colours:?}");
     // One hand alone, through the single-hand command: the same grasp.
     let single = tmp.join("SINGLE");
     let o = ergohand(&[

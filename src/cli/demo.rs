@@ -66,7 +66,6 @@ pub fn demo(out: &Path) -> Result<()> {
         Voice::Nested,
     )?;
     let track_s = t3.elapsed().as_secs_f64();
-    let v = validate_job(&subject_dir, &model_dir, &report_dir, &[], Voice::Nested)?;
     let fist = pose_job(
         &model_dir,
         "fist",
@@ -74,11 +73,21 @@ pub fn demo(out: &Path) -> Result<()> {
         &PoseOptions::default(),
         Voice::Nested,
     )?;
-    let grasp = demo_bottle(&model_dir, &out.join("grasp"))?;
+    let grasp_dir = out.join("grasp");
+    let grasp = demo_bottle(&model_dir, &grasp_dir)?;
+    // Validated last, so that its report has the grasp and the posed fist in it.
+    let v = validate_job(
+        &subject_dir,
+        &model_dir,
+        &report_dir,
+        &[],
+        std::slice::from_ref(&grasp_dir),
+        Voice::Nested,
+    )?;
     let (acc, surface) = v.against_references(&subject_dir)?;
     if super::show_summaries() {
         println!(
-            "ergohand demo: stages run: template, synth, link model, skin (sections 3.5-3.6), tetrahedral mesh, skinned hand, track, validation report, pose, grasp"
+            "ergohand demo: stages run: template, synth, link model, skin (sections 3.5-3.6), tetrahedral mesh, skinned hand, track, pose, grasp, validation report"
         );
         for h in &t.hands {
             let (lo, hi) = h.mesh.bounds().expect("non-empty template");
@@ -175,7 +184,10 @@ pub fn demo(out: &Path) -> Result<()> {
             subject_dir.display()
         );
         println!("    {}", model_dir.join("link_model.json").display());
-        println!("    {}/ (motion.json, motion.glb)", track_dir.display());
+        println!(
+            "    {}/ (motion.json, motion.glb, view.html, contact_map.view.html)",
+            track_dir.display()
+        );
         for f in [
             "skin.obj",
             "tet.vtk",
@@ -183,6 +195,7 @@ pub fn demo(out: &Path) -> Result<()> {
             "hand.glb",
             "fist.glb",
             "fist.baked.glb",
+            "fist.pose.json",
             "report.json",
         ] {
             println!("    {}", model_dir.join(f).display());
@@ -192,6 +205,10 @@ pub fn demo(out: &Path) -> Result<()> {
         println!(
             "    {} (the fist in 3-D with joint sliders: open it in a browser)",
             fist.view.display()
+        );
+        println!(
+            "    {} (the skin's error map in 3-D)",
+            report_dir.join("view.html").display()
         );
         println!(
             "    {} (the grasp in 3-D: open it in a browser)",

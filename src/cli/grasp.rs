@@ -1,7 +1,6 @@
 //! `ergohand grasp`: a scene's hand closed on its part, and the files that show the grasp.
 
 use crate::error::{Error, Result};
-use crate::geometry::{Point, TriMesh};
 use crate::grasp::contact::ContactOptions;
 use crate::grasp::{
     contact_colours, load_hand, run_scene, run_scene_on, scene, GraspOutcome, GraspReport,
@@ -49,32 +48,16 @@ pub(crate) fn write_outputs(o: &GraspOutcome, out: &Path) -> Result<Vec<u8>> {
     crate::io::atomic::write_bytes_atomic(&out.join("grasp.glb"), &glb)?;
     let page = view_page(o, glb);
     crate::io::atomic::write_bytes_atomic(&out.join("view.html"), view_html(&page).as_bytes())?;
-    // Picture: hand and part together, seen from the palm side of the part.
-    let mut v = o.hand_mesh.vertices.clone();
-    let mut f = o.hand_mesh.faces.clone();
-    let off = v.len();
-    v.extend(o.part_mesh.vertices.iter().cloned());
-    f.extend(
-        o.part_mesh
-            .faces
-            .iter()
-            .map(|t| [t[0] + off, t[1] + off, t[2] + off]),
-    );
-    let mut cols = colours;
-    cols.extend(std::iter::repeat_n(part_grey, o.part_mesh.n_vertices()));
-    let both = TriMesh {
-        vertices: v,
-        faces: f,
-    };
-    let com = o.report.part.centre_of_mass_mm;
-    let centre = |pts: &[Point]| {
-        Point::from(
-            pts.iter().map(|p| p.coords).sum::<crate::geometry::Vec3>() / pts.len().max(1) as f64,
-        )
-    };
-    let dir = Point::from(com) - centre(&o.hand_mesh.vertices);
-    let view = crate::render::View::along(dir, crate::geometry::Vec3::z()).fit_mesh(&both, 0.05);
-    let img = crate::render::render_mesh(&both, Some(&cols), &view, 800, 800);
+    // Picture: the hand from the side that carries its contacts, with the legend.
+    let img = crate::validate::grasp_picture::contact_picture(
+        &o.hand_mesh,
+        &colours,
+        &o.report.contacts,
+        &o.hand_frame,
+        ContactOptions::default().tolerance_mm,
+        crate::grasp::COLOUR_RANGE_MM,
+        800,
+    )?;
     let path = out.join("contact_map.png");
     let png = img.to_png().map_err(|e| e.in_file(&path))?;
     crate::io::atomic::write_bytes_atomic(&path, &png)?;
@@ -104,6 +87,7 @@ fn view_page(o: &GraspOutcome, glb: Vec<u8>) -> ViewPage {
             name: "hand and part".into(),
             role: "scene",
             bytes: glb,
+            value: None,
         }],
         part_nodes: vec!["part".into()],
         legend: Some(Legend {
@@ -226,8 +210,13 @@ pub(crate) fn demo_bottle_scene(out: &Path) -> Result<PathBuf> {
 }
 
 /// The population page's files, written into the `--out` folder beside one folder per hand.
-pub(crate) const POPULATION_FILES: [&str; 3] =
-    ["population.json", "population.md", "population.html"];
+pub(crate) const POPULATION_FILES: [&str; 5] = [
+    "population.json",
+    "population.md",
+    "population.html",
+    "contact_frequency.glb",
+    "view.html",
+];
 
 /// The model folders named by `--models`: each path that holds `link_model.json`, else its
 /// subfolders that do (a `batch` output), in name order.
@@ -308,9 +297,27 @@ pub fn grasp_population(
     let bar = crate::cli::progress(hands.len() as u64, "hands");
     let mut outcomes = Vec::new();
     let mut pictures = Vec::new();
+    // Per part vertex: the hands whose skin touches it. Every hand meets the one part placed
+    // where the scene puts it (the hand is what moves), so vertex k is the same place of the
+    // part for every hand.
+    let contact = ContactOptions::default();
+    let mut touched = vec![0u32; part.mesh.n_vertices()];
+    let mut grasped = 0;
     for ((hand, name), folder) in hands.iter().zip(&names).zip(&folders) {
         let dir = out.join(name);
         let result = run_scene_on(&s, hand, &part, &part_warnings);
+        if let Ok(o) = &result {
+            grasped += 1;
+            let hit = crate::grasp::population::part_vertices_touched(
+                &o.hand_mesh,
+                &part.mesh,
+                contact.tolerance_mm,
+                contact.search_mm,
+            );
+            for (t, h) in touched.iter_mut().zip(hit) {
+                *t += h as u32;
+            }
+        }
         pictures.push(match &result {
             Ok(o) => Some(write_outputs(o, &dir)?),
             Err(e) => {
@@ -348,6 +355,34 @@ pub fn grasp_population(
         &out.join("population.html"),
         crate::validate::population_report::population_html(&summary, &pictures).as_bytes(),
     )?;
+    // The contact frequency map on the part in its own frame (as its file gives it).
+    let own = part.mesh.transformed(&s.part_pose.inverse());
+    // Opened facing the place most hands touch.
+    let colours = crate::validate::pages::hand_share_colours(&touched, summary.hands);
+    let glb = crate::io::gltf::glb_bytes(
+        &crate::io::gltf::Scene {
+            meshes: vec![crate::io::gltf::SceneMesh {
+                name: "part".into(),
+                mesh: own.clone(),
+                normals: None,
+                colors: Some(
+                    colours
+                        .into_iter()
+                        .map(crate::validate::error_map::srgb_to_linear)
+                        .collect(),
+                ),
+                skin: None,
+            }],
+            animations: Vec::new(),
+        },
+        Units::Metres,
+    )?;
+    crate::io::atomic::write_bytes_atomic(&out.join("contact_frequency.glb"), &glb)?;
+    let mut page =
+        crate::validate::pages::population_page(&summary, glb, grasped, contact.tolerance_mm);
+    page.frame = crate::validate::pages::touched_side_frame(&own, &touched);
+    page.view = page.frame.map(|_| "dorsal");
+    crate::io::atomic::write_bytes_atomic(&out.join("view.html"), view_html(&page).as_bytes())?;
     log::info!(
         "grasp: {} of {} hands hold the part, {} in force closure; wrote {}",
         summary.holding,

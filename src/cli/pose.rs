@@ -309,12 +309,31 @@ pub(crate) fn pose_job(
         out_file.display(),
         page_path.display()
     );
-    Ok(PoseSummary {
+    let summary = PoseSummary {
         warnings,
         written: out_file.to_path_buf(),
         view: page_path,
         penetration_mm,
-    })
+    };
+    write_pose_record(pose_arg, &summary)?;
+    Ok(summary)
+}
+
+/// `NAME.pose.json` beside the posed hand `NAME.EXT`: what this run measured on it (the
+/// validation report's pose section reads it from the model folder).
+fn write_pose_record(pose_arg: &str, s: &PoseSummary) -> Result<()> {
+    use crate::validate::grasp_pose_sections::{pose_record_path, PoseRecord};
+    let record = PoseRecord {
+        pose: pose_arg.to_string(),
+        file: s
+            .written
+            .file_name()
+            .map_or_else(String::new, |n| n.to_string_lossy().into_owned()),
+        penetration_mm: s.penetration_mm,
+        warnings: s.warnings.clone(),
+    };
+    let json = serde_json::to_string_pretty(&record).expect("serialisable");
+    crate::io::atomic::write_bytes_atomic(&pose_record_path(&s.written), json.as_bytes())
 }
 
 /// The baked skin beside a skinned GLB: `fist.glb` -> `fist.baked.glb`.

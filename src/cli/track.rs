@@ -10,7 +10,7 @@ use crate::grasp::contact::PartShape;
 use crate::grasp::hand::SkinnedHand;
 use crate::grasp::scene::Scene;
 use crate::io::atomic::write_bytes_atomic;
-use crate::io::gltf::write_glb;
+use crate::io::gltf::glb_bytes;
 use crate::io::output_paths::{check_output_dir, Inputs};
 use crate::io::Units;
 use crate::mocap::subject::{Subject, TrialKind};
@@ -24,7 +24,7 @@ use crate::validate::motion_report::{motion_report_html, PagePicture};
 use std::path::{Path, PathBuf};
 
 /// The files `track` writes into its output folder.
-pub const OUTPUT_FILES: [&str; 7] = [
+pub const OUTPUT_FILES: [&str; 9] = [
     "motion.json",
     "motion.glb",
     "contact_map.png",
@@ -32,6 +32,8 @@ pub const OUTPUT_FILES: [&str; 7] = [
     "angles.png",
     "contact_area.png",
     "report.html",
+    "view.html",
+    "contact_map.view.html",
 ];
 
 /// What [`track`] did.
@@ -251,16 +253,24 @@ pub(crate) fn track_job(
     let written = out.join("motion.json");
     let (json, glb_written) = rayon::join(
         || file.write(&written),
-        || match &animated {
-            Some(a) => write_glb(&glb, a, Units::Metres),
-            None if glb.is_file() => std::fs::remove_file(&glb).map_err(|e| Error::io(&glb, e)),
-            None => Ok(()),
+        || -> Result<Option<Vec<u8>>> {
+            match &animated {
+                Some(a) => {
+                    let bytes = glb_bytes(a, Units::Metres).map_err(|e| e.in_file(&glb))?;
+                    write_bytes_atomic(&glb, &bytes)?;
+                    Ok(Some(bytes))
+                }
+                None => {
+                    remove_stale(&glb)?;
+                    Ok(None)
+                }
+            }
         },
     );
     json?;
-    glb_written?;
+    let motion_glb = glb_written?;
     lap("motion.json and motion.glb");
-    let map_png = write_map(out, map.as_ref())?;
+    let (map_png, map_glb) = write_map(out, map.as_ref())?.unzip();
     if map.is_none() && hand.is_some() {
         log::log!(
             voice.info(),
@@ -285,7 +295,8 @@ pub(crate) fn track_job(
         sources.push(s.path.display().to_string());
     }
     write_charts_and_page(out, &title, &sources, &file, map_png)?;
-    lap("the contact map's pictures, the charts and the page");
+    write_view_pages(out, &title, &file, motion_glb, map.as_ref().zip(map_glb))?;
+    lap("the contact map's pictures, the charts and the pages");
     for w in &warnings {
         log::log!(voice.warn(), "{w}");
     }
@@ -306,26 +317,69 @@ pub(crate) fn track_job(
     })
 }
 
-/// Write `contact_map.png` and `contact_map.glb` of `map` into `out` and return the PNG, or
-/// remove stale ones when there is no map.
-fn write_map(out: &Path, map: Option<&ContactMap>) -> Result<Option<Vec<u8>>> {
+/// Remove `path` if a previous run left it (an output this run does not write).
+fn remove_stale(path: &Path) -> Result<()> {
+    if path.is_file() {
+        std::fs::remove_file(path).map_err(|e| Error::io(path, e))?;
+    }
+    Ok(())
+}
+
+/// Write `contact_map.png` and `contact_map.glb` of `map` into `out` and return their bytes,
+/// or remove stale ones when there is no map.
+fn write_map(out: &Path, map: Option<&ContactMap>) -> Result<Option<(Vec<u8>, Vec<u8>)>> {
     let (png, glb) = (out.join(OUTPUT_FILES[2]), out.join(OUTPUT_FILES[3]));
     match map {
         Some(m) => {
             let bytes = contact_map_picture(m, 420)?.to_png()?;
             write_bytes_atomic(&png, &bytes)?;
-            write_glb(&glb, &contact_map_scene(m), Units::Metres)?;
-            Ok(Some(bytes))
+            let g = glb_bytes(&contact_map_scene(m), Units::Metres).map_err(|e| e.in_file(&glb))?;
+            write_bytes_atomic(&glb, &g)?;
+            Ok(Some((bytes, g)))
         }
         None => {
-            for p in [png, glb] {
-                if p.is_file() {
-                    std::fs::remove_file(&p).map_err(|e| Error::io(&p, e))?;
-                }
-            }
+            remove_stale(&png)?;
+            remove_stale(&glb)?;
             Ok(None)
         }
     }
+}
+
+/// The 3-D pages of the trial: `view.html` (the animated `motion.glb`) and
+/// `contact_map.view.html` (`contact_map.glb` with its legend), each written when its GLB is,
+/// a stale one removed when it is not.
+fn write_view_pages(
+    out: &Path,
+    title: &str,
+    file: &crate::track::MotionFile,
+    motion_glb: Option<Vec<u8>>,
+    map: Option<(&ContactMap, Vec<u8>)>,
+) -> Result<()> {
+    use crate::validate::pages::{track_contact_page, track_motion_page};
+    use crate::validate::view_page::{view_html, ViewFrame};
+    let (motion_page, map_page) = (out.join(OUTPUT_FILES[7]), out.join(OUTPUT_FILES[8]));
+    match motion_glb {
+        Some(g) => write_bytes_atomic(
+            &motion_page,
+            view_html(&track_motion_page(title, file, g)).as_bytes(),
+        )?,
+        None => remove_stale(&motion_page)?,
+    }
+    match map {
+        Some((m, g)) => {
+            let (origin, [dorsal, radial, distal]) = m.posed_frame;
+            let frame = ViewFrame {
+                origin,
+                dorsal,
+                radial,
+                distal,
+            };
+            let page = track_contact_page(title, file, g, m.frames, m.frame, frame);
+            write_bytes_atomic(&map_page, view_html(&page).as_bytes())?
+        }
+        None => remove_stale(&map_page)?,
+    }
+    Ok(())
 }
 
 /// Write `angles.png`, `contact_area.png` and `report.html` (with the contact map's picture

@@ -20,18 +20,20 @@ pub type Validation = crate::validate::SubjectValidation;
 /// references are optional (a real subject has no `truth.json`): what needs a missing one is
 /// skipped, and the report says so.
 pub fn validate(subject_dir: &Path, model: &Path, report: &Path) -> Result<Validation> {
-    validate_job(subject_dir, model, report, &[], Voice::Command)
+    validate_job(subject_dir, model, report, &[], &[], Voice::Command)
 }
 
 /// [`validate`], with the tracked motions of the `track` output folders `motions` scored
-/// against the subject's motion truths (besides those found in `MODEL/motions/NAME/`).
+/// against the subject's motion truths (besides those found in `MODEL/motions/NAME/`), and the
+/// `grasp` output folders `grasps` in the report's grasp section.
 pub fn validate_with(
     subject_dir: &Path,
     model: &Path,
     report: &Path,
     motions: &[std::path::PathBuf],
+    grasps: &[std::path::PathBuf],
 ) -> Result<Validation> {
-    validate_job(subject_dir, model, report, motions, Voice::Command)
+    validate_job(subject_dir, model, report, motions, grasps, Voice::Command)
 }
 
 /// [`validate_with`], speaking with `voice`: the tables on stdout only for the command's own
@@ -41,13 +43,15 @@ pub(crate) fn validate_job(
     model: &Path,
     report: &Path,
     motions: &[std::path::PathBuf],
+    grasps: &[std::path::PathBuf],
     voice: Voice,
 ) -> Result<Validation> {
     let spinner = match voice {
         Voice::Command => super::progress(1, "validate"),
         Voice::Nested => indicatif::ProgressBar::hidden(),
     };
-    let (v, _) = crate::validate::validate_subject_with(subject_dir, model, report, motions)?;
+    let (v, _) =
+        crate::validate::validate_subject_with(subject_dir, model, report, motions, grasps)?;
     spinner.finish_and_clear();
     let dims = &v.dimensions;
     if voice == Voice::Command && super::show_summaries() {

@@ -331,7 +331,9 @@ mod tests {
             Point::new(0.0, 0.0, 1.0),
         ];
         let far = (1.0 / 3f64.sqrt()).acos().to_degrees();
-        let good = TetMesh::new(nodes.clone(), vec![[0, 1, 2, 3]]).unwrap().quality();
+        let good = TetMesh::new(nodes.clone(), vec![[0, 1, 2, 3]])
+            .unwrap()
+            .quality();
         assert!((good.min_dihedral_deg.min - far).abs() < 1e-9);
         let bad = TetMesh::new(nodes, vec![[0, 2, 1, 3]]).unwrap().quality();
         assert_eq!(bad.inverted, 1);

@@ -244,6 +244,35 @@ pub fn summarise(scene: &str, grasp_type: &str, outcomes: Vec<HandOutcome>) -> P
     }
 }
 
+/// Which vertices of `part` a posed hand's skin touches: a part vertex within `tolerance_mm`
+/// of the skin, or inside the skin by at most `search_mm` (signed by the skin's angle-weighted
+/// pseudo-normals), the contact test of the grasp seen from the part's side (deeper than the
+/// grasp's search radius the grasp does not look either).
+pub fn part_vertices_touched(
+    skin: &crate::geometry::TriMesh,
+    part: &crate::geometry::TriMesh,
+    tolerance_mm: f64,
+    search_mm: f64,
+) -> Vec<bool> {
+    use crate::geometry::closest_point::{AabbTree, PseudoNormals};
+    use rayon::prelude::*;
+    let tree = AabbTree::new(skin);
+    let normals = PseudoNormals::new(skin);
+    let reach = tolerance_mm.max(search_mm);
+    part.vertices
+        .par_iter()
+        .map(|p| match tree.closest_point_within(p, reach) {
+            // Only near points need a sign, and only their sign decides.
+            Some(c) if c.distance <= tolerance_mm => true,
+            Some(c) => {
+                let n = normals.of(skin, c.face, c.feature);
+                (p - c.point).dot(&n) < 0.0
+            }
+            None => false,
+        })
+        .collect()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -10,7 +10,7 @@ use crate::anatomy::Joint;
 use crate::error::{Error, Result};
 use crate::geometry::closest_point::AabbTree;
 use crate::geometry::{Point, TriMesh, Vec3};
-use crate::io::gltf::{write_glb, Scene, SceneMesh};
+use crate::io::gltf::{glb_bytes, Scene, SceneMesh};
 use crate::io::Units;
 use crate::render::{
     colour_bar_ticks, draw_label_sized, label_size, map_values, render_mesh_with, Image,
@@ -266,10 +266,12 @@ pub(crate) fn srgb_to_linear(c: [u8; 3]) -> [f32; 4] {
     [f(c[0]), f(c[1]), f(c[2]), 1.0]
 }
 
-/// Write `skin` with its error colours (viridis, 0 to `top` mm) as a GLB: one mesh named
+/// `skin` with its error colours (viridis, 0 to `top` mm) as GLB bytes: one mesh named
 /// `error map`, lengths in metres, colours in `COLOR_0`, through the same [`crate::io::gltf`]
 /// writer as every other GLB of the toolkit.
-pub fn write_error_map_glb(path: &Path, skin: &TriMesh, values: &[f64], top: f64) -> Result<()> {
+// The distances themselves belong in a custom vertex attribute `_ERROR_MM` (the view page's
+// clicked-point readout, `pages::validate_page`) once `SceneMesh` carries attributes.
+pub fn error_map_glb(skin: &TriMesh, values: &[f64], top: f64) -> Result<Vec<u8>> {
     let colours = map_values(values, 0.0, top);
     let scene = Scene {
         meshes: vec![SceneMesh {
@@ -281,7 +283,12 @@ pub fn write_error_map_glb(path: &Path, skin: &TriMesh, values: &[f64], top: f64
         }],
         animations: Vec::new(),
     };
-    write_glb(path, &scene, Units::Metres)
+    glb_bytes(&scene, Units::Metres)
+}
+
+/// [`error_map_glb`] written to `path` atomically.
+pub fn write_error_map_glb(path: &Path, skin: &TriMesh, values: &[f64], top: f64) -> Result<()> {
+    crate::io::atomic::write_bytes_atomic(path, &error_map_glb(skin, values, top)?)
 }
 
 #[cfg(test)]

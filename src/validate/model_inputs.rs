@@ -13,6 +13,9 @@ use crate::skeleton::record::JointRecord;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
+/// The 3-D page of the error map, beside `report.html`.
+pub const VIEW_FILE: &str = "view.html";
+
 /// Largest ratio between the bounding-box diagonals of `reference.ply` and `skin.obj` that a
 /// reference of the same hand can have (a scan cut at another place of the forearm differs by
 /// tens of percent, a wrong unit by 10 to 1000 times).
@@ -93,7 +96,13 @@ impl ModelInputs {
         .with_model(model);
         crate::io::output_paths::check_output_dir(
             report,
-            &["metrics.json", "report.html", "report.md", "error-map.png"],
+            &[
+                "metrics.json",
+                "report.html",
+                "report.md",
+                "error-map.png",
+                VIEW_FILE,
+            ],
             "--report",
             &inputs,
         )?;

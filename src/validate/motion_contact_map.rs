@@ -66,6 +66,9 @@ pub struct ContactMap {
     /// The reference posture's dorsal and distal directions (lab frame).
     pub dorsal: Vec3,
     pub distal: Vec3,
+    /// The hand's frame as `hand_posed` shows it: the wrist centre and the dorsal, radial and
+    /// distal directions ([`Skeleton::hand_directions`] carried by the palm), lab frame.
+    pub posed_frame: (Point, [Vec3; 3]),
 }
 
 /// The dorsal and distal directions of a hand in its reference posture: the wrist frame's y
@@ -128,21 +131,27 @@ pub fn contact_map(
         (0..tracked.frames.len())
             .find(|&f| tracked.frames[f].state.is_some() && pose_at(f).is_some())
     });
-    let (hand_posed, part_pose) = match shown {
+    let (origin, axes) = hand.hand.skeleton.hand_directions();
+    let (hand_posed, part_pose, palm) = match shown {
         Some(f) => {
             let state = tracked.frames[f]
                 .state
                 .as_ref()
                 .ok_or_else(|| Error::invalid("contact map: the shown frame is unsolved"))?;
             let mut v = Vec::new();
-            hand.pose_all(&kin.evaluate(state).links, &mut v);
+            let links = kin.evaluate(state).links;
+            hand.pose_all(&links, &mut v);
             let posed = TriMesh {
                 vertices: v,
                 faces: rest.faces.clone(),
             };
-            (posed, pose_at(f).unwrap_or_else(Isometry3::identity))
+            (
+                posed,
+                pose_at(f).unwrap_or_else(Isometry3::identity),
+                links[crate::anatomy::Link::Palm.index()],
+            )
         }
-        None => (rest.clone(), Isometry3::identity()),
+        None => (rest.clone(), Isometry3::identity(), Isometry3::identity()),
     };
     let hand_in_part = part_pose.inverse() * centroid(&hand_posed.vertices);
     let towards_part = (centroid(&part.vertices) - hand_in_part)
@@ -161,6 +170,7 @@ pub fn contact_map(
         towards_part,
         dorsal,
         distal,
+        posed_frame: (palm * origin, axes.map(|a| palm * a)),
     })
 }
 
@@ -524,6 +534,7 @@ mod tests {
             towards_part,
             dorsal,
             distal,
+            posed_frame: (Point::origin(), [dorsal, dorsal.cross(&distal), distal]),
         };
         let px = 200;
         let img = contact_map_picture(&map, px).unwrap();

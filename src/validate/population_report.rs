@@ -203,6 +203,19 @@ fn lead(s: &PopulationSummary) -> String {
     )
 }
 
+/// A folder name as a relative URL: every byte outside the unreserved set percent-encoded,
+/// so a name with spaces, `#` or `?` still links to its folder.
+fn url_path(name: &str) -> String {
+    name.bytes()
+        .map(|b| match b {
+            b'A'..=b'Z' | b'a'..=b'z' | b'0'..=b'9' | b'-' | b'_' | b'.' | b'~' => {
+                (b as char).to_string()
+            }
+            _ => format!("%{b:02X}"),
+        })
+        .collect()
+}
+
 /// `population.html`: `pictures` are each hand's contact picture (PNG bytes), in the order of
 /// the outcomes (`None`: none written, e.g. no grasp found).
 pub fn population_html(s: &PopulationSummary, pictures: &[Option<Vec<u8>>]) -> String {
@@ -210,7 +223,7 @@ pub fn population_html(s: &PopulationSummary, pictures: &[Option<Vec<u8>>]) -> S
     let mut body = format!(
         "<section><h2>Who holds it</h2><p class=\"lead\">{}</p>{}\
 <figure><img src=\"data:image/svg+xml;base64,{}\" alt=\"epsilon against hand length\"><figcaption>Epsilon (Ferrari-Canny) against hand length; filled: holds, open: does not.</figcaption></figure></section>\n\
-<section><h2>Every hand</h2>{}</section>\n<section><h2>Contacts</h2><p class=\"lead\">Each hand on the part, contact colours as in <code>grasp.glb</code> (red: touching or inside).</p>\n",
+<section><h2>Every hand</h2>{}</section>\n<section><h2>Contacts</h2><p class=\"lead\">Where the hands touch the part, in 3-D: <a href=\"view.html\">view.html</a> (the part coloured by the share of hands whose skin touches each place). Each hand on the part below, contact colours as in <code>grasp.glb</code> (red: touching or inside), and in 3-D in its own page.</p>\n",
         esc(&lead(s)),
         table_html(&size_table(s)),
         super::report_html::base64(svg.as_bytes()),
@@ -219,11 +232,12 @@ pub fn population_html(s: &PopulationSummary, pictures: &[Option<Vec<u8>>]) -> S
     for (o, png) in s.outcomes.iter().zip(pictures) {
         if let Some(png) = png {
             body.push_str(&format!(
-                "<figure><img src=\"{}\" alt=\"{}\" loading=\"eager\" style=\"max-width:400px\"><figcaption>{}: {}</figcaption></figure>\n",
+                "<figure><img src=\"{}\" alt=\"{}\" loading=\"eager\" style=\"max-width:400px\"><figcaption>{}: {} (<a href=\"{}/view.html\">3-D</a>)</figcaption></figure>\n",
                 png_data_uri(png),
                 esc(&o.name),
                 esc(&o.name),
-                if o.holds { "holds" } else { "not held" }
+                if o.holds { "holds" } else { "not held" },
+                esc(&url_path(&o.name))
             ));
         }
     }
@@ -300,6 +314,11 @@ mod tests {
         );
         assert_eq!(epsilon_chart_svg(&s).matches("<circle").count(), 3);
         assert!(html.contains("2 of 3 hands hold the part"));
+        // The population's 3-D page, and each pictured hand's own.
+        assert!(html.contains("<a href=\"view.html\">"));
+        assert!(html.contains("<a href=\"s1/view.html\">") && html.contains("s3/view.html"));
+        assert!(!html.contains("s2/view.html"), "no grasp, no page");
+        assert_eq!(url_path("a b#?/é"), "a%20b%23%3F%2F%C3%A9");
         let md = population_markdown(&s);
         for name in ["s1", "s2", "s3"] {
             assert!(html.contains(name) && md.contains(name), "{name}");

@@ -11,15 +11,17 @@
 
 use super::dimension_accuracy::{dimension_accuracy, DimensionAccuracy};
 use super::error_map::{
-    colour_scale_top, error_map, hand_directions, render_error_views, write_error_map_glb, ErrorMap,
+    colour_scale_top, error_map, error_map_glb, hand_directions, render_error_views, ErrorMap,
 };
 use super::joint_fit::{joint_fits, JointFit};
 use super::joint_fit_plots::{joint_fit_figures, radius_figure};
 use super::link_accuracy::{link_lengths, LinkAccuracy};
 use super::model_inputs::ModelInputs;
+pub use super::model_inputs::VIEW_FILE;
 pub use super::model_inputs::{check_reference_scale, REFERENCE_SCALE_RATIO};
 use super::subject_validation::{JointFitSummary, ReportFigures, SubjectValidation};
 use super::surface_regions::{model_regions, surface_regions, SurfaceRegions};
+use super::view_page::{view_html, ViewFrame};
 use crate::anatomy::landmark_names;
 use crate::error::Result;
 use crate::io::atomic::write_bytes_atomic;
@@ -38,17 +40,19 @@ pub fn validate_subject(
     model: &Path,
     report: &Path,
 ) -> Result<(SubjectValidation, ReportFigures)> {
-    validate_subject_with(subject_dir, model, report, &[])
+    validate_subject_with(subject_dir, model, report, &[], &[])
 }
 
 /// [`validate_subject`], with the tracked motions of the folders `motions` scored against the
 /// subject's motion truths as well as those found in `model/motions/NAME/`
-/// ([`super::motion_accuracy::subject_motions`]).
+/// ([`super::motion_accuracy::subject_motions`]), and the grasp output folders `grasps` (and
+/// the posed hands of the model folder, `NAME.pose.json`) reported as written.
 pub fn validate_subject_with(
     subject_dir: &Path,
     model: &Path,
     report: &Path,
     motions: &[PathBuf],
+    grasps: &[PathBuf],
 ) -> Result<(SubjectValidation, ReportFigures)> {
     let mut timings: Vec<(String, f64)> = Vec::new();
     let mut t = Instant::now();
@@ -57,6 +61,12 @@ pub fn validate_subject_with(
         *t = Instant::now();
     };
     let mut inputs = ModelInputs::read(subject_dir, model, report)?;
+    // The other commands' outputs are read before any work: a bad one stops the run early.
+    let grasp_sections = grasps
+        .iter()
+        .map(|g| super::grasp_pose_sections::read_grasp_section(g))
+        .collect::<Result<Vec<_>>>()?;
+    let poses = super::grasp_pose_sections::model_poses(model)?;
     lap("read inputs", &mut t);
 
     let measured = measure(&mut inputs, model)?;
@@ -85,6 +95,9 @@ pub fn validate_subject_with(
         }
         None => None,
     };
+    let page_map = map_pictures
+        .as_ref()
+        .map(|p| (p.glb.clone(), p.top, p.frame));
     let (figures, thumbnail_png, top) = charts(&measured, map_pictures, report)?;
     lap("charts (PNG and SVG)", &mut t);
     let motions = super::motion_accuracy::subject_motions(subject_dir, model, motions)?;
@@ -94,8 +107,10 @@ pub fn validate_subject_with(
 
     let mut v = summary(inputs, measured, &figures, thumbnail_png, top);
     v.motions = motions;
+    v.grasps = grasp_sections;
+    v.poses = poses;
     // The report's own time goes into the report: write it last, after measuring.
-    let html = super::report_html::subject_html(&v, &figures);
+    let html = super::report_html::subject_html(&v, &figures, report);
     let md = super::report_md::subject_markdown(&v, &figures);
     lap("report.html and report.md", &mut t);
     v.validate_timings_s = timings;
@@ -111,6 +126,18 @@ pub fn validate_subject_with(
     write_bytes_atomic(&report.join("report.md"), md.as_bytes())?;
     let json = serde_json::to_string_pretty(&v).expect("serialisable");
     write_bytes_atomic(&report.join("metrics.json"), json.as_bytes())?;
+    // The 3-D page of the error map; none without a reference surface (nothing to colour).
+    let page = report.join(VIEW_FILE);
+    match page_map {
+        Some((glb, top, frame)) => {
+            let html = view_html(&super::pages::validate_page(&v, glb, top, frame));
+            write_bytes_atomic(&page, html.as_bytes())?;
+        }
+        None if page.is_file() => {
+            std::fs::remove_file(&page).map_err(|e| crate::error::Error::io(&page, e))?
+        }
+        None => {}
+    }
     Ok((v, figures))
 }
 
@@ -218,7 +245,15 @@ fn summary(
         "report.md".into(),
     ];
     if measured.map.is_some() {
-        files.extend(["error-map.png", "error-map-small.png", "error-map.glb"].map(String::from));
+        files.extend(
+            [
+                "error-map.png",
+                "error-map-small.png",
+                "error-map.glb",
+                VIEW_FILE,
+            ]
+            .map(String::from),
+        );
     }
     for f in figures
         .distances
@@ -251,6 +286,8 @@ fn summary(
         validate_timings_s: Vec::new(),
         warnings: inputs.warnings,
         motions: Vec::new(),
+        grasps: Vec::new(),
+        poses: Vec::new(),
         files,
         thumbnail_png,
     }
@@ -264,6 +301,10 @@ struct ErrorMapPictures {
     thumbnail_png: Vec<u8>,
     /// Top of the colour scale, mm.
     top: f64,
+    /// `error-map.glb`'s bytes.
+    glb: Vec<u8>,
+    /// The hand's frame (wrist centre; dorsal, radial, distal) for the 3-D page's views.
+    frame: ViewFrame,
 }
 
 /// The error map's pictures in `report`: `error-map.png` (four views, with the statistics in
@@ -293,15 +334,21 @@ fn error_map_pictures(
     let thumb = render_error_views(skin, &map.skin_to_reference, dirs, top, "", 100, 2)?;
     let thumbnail_png = thumb.to_png()?;
     write_bytes_atomic(&report.join("error-map-small.png"), &thumbnail_png)?;
-    write_error_map_glb(
-        &report.join("error-map.glb"),
-        skin,
-        &map.skin_to_reference,
-        top,
-    )?;
+    let glb = error_map_glb(skin, &map.skin_to_reference, top)?;
+    write_bytes_atomic(&report.join("error-map.glb"), &glb)?;
+    let wrist = joints
+        .get(crate::anatomy::Joint::Wrist.name())
+        .map_or([0.0; 3], |w| w.centre);
     Ok(ErrorMapPictures {
         picture: (map_path, map_png),
         thumbnail_png,
         top,
+        glb,
+        frame: ViewFrame {
+            origin: crate::geometry::Point::new(wrist[0], wrist[1], wrist[2]),
+            dorsal: dirs.0,
+            radial: dirs.2,
+            distal: dirs.1,
+        },
     })
 }

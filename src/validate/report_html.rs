@@ -253,7 +253,13 @@ pub fn runtime_html(v: &SubjectValidation) -> String {
 }
 
 /// The page of one subject.
-pub fn subject_html(v: &SubjectValidation, figs: &ReportFigures) -> String {
+/// The subject's report page; `report` is the folder it is written to (for relative links to
+/// the other commands' outputs).
+pub fn subject_html(
+    v: &SubjectValidation,
+    figs: &ReportFigures,
+    report: &std::path::Path,
+) -> String {
     let against = match (v.references.truth_json, v.references.reference_ply) {
         (true, true) => "the simulated subject's truth and its CT-like reference surface",
         (true, false) => "the simulated subject's truth and the caliper dimensions",
@@ -303,7 +309,7 @@ pub fn subject_html(v: &SubjectValidation, figs: &ReportFigures) -> String {
         tables::surface_table(v),
         v.colour_scale_top_mm,
     ) {
-        b.push_str(&format!("<p class=\"lead\">Every vertex of the fitted skin (<code>skin.obj</code>) coloured by its distance to the reference surface (<code>reference.ply</code>, {}), as the seed paper's Figure 10(e). Yellow areas are where the reconstruction is furthest from the hand. The same colours are in <code>error-map.glb</code> for any glTF viewer.</p>",
+        b.push_str(&format!("<p class=\"lead\">Every vertex of the fitted skin (<code>skin.obj</code>) coloured by its distance to the reference surface (<code>reference.ply</code>, {}), as the seed paper's Figure 10(e). Yellow areas are where the reconstruction is furthest from the hand. The same colours are in <code>error-map.glb</code> for any glTF viewer, and in 3-D with its legend in <a href=\"view.html\">view.html</a>.</p>",
         if v.references.truth_json { "a simulated CT of the true hand" } else { "a CT-like scan of the hand" }
     ));
         b.push_str(&figure(
@@ -313,7 +319,7 @@ pub fn subject_html(v: &SubjectValidation, figs: &ReportFigures) -> String {
             "Views from the back of the hand, the palm, the thumb side and the little-finger side, all at one scale. Colour scale 0 to {:.1} mm (the 99th percentile rounded up; larger distances take the top colour).",
             top
         ),
-        &[("PNG", "error-map.png".into()), ("GLB with vertex colours", "error-map.glb".into())],
+        &[("PNG", "error-map.png".into()), ("GLB with vertex colours", "error-map.glb".into()), ("3-D page", "view.html".into())],
     ));
         b.push_str(&table_html(&table));
         b.push_str(&chart(
@@ -422,7 +428,55 @@ pub fn subject_html(v: &SubjectValidation, figs: &ReportFigures) -> String {
         }
         b.push_str("</section>\n");
     }
+    grasp_and_pose_sections(v, report, &mut b);
     page(&format!("ergohand validation · {}", v.subject), &header, &b)
+}
+
+/// 9 and 10: the grasps given to `validate` and the posed hands of the model folder, as their
+/// commands wrote them; `report` is where the page is written (links are relative to it).
+fn grasp_and_pose_sections(v: &SubjectValidation, report: &std::path::Path, b: &mut String) {
+    use super::grasp_pose_sections::relative_link;
+    use super::report_tables::{grasp_tables, pose_table};
+    if !v.grasps.is_empty() {
+        b.push_str("<section id=\"grasps\"><h2>9 · Grasps</h2><p class=\"lead\">The hand closed on a part by <code>ergohand grasp</code>: force closure, the Ferrari-Canny epsilon, the hold test in rapier (gravity from six directions), the contact area per link, and the contact picture seen from the side that carries the contacts (red: touching or inside).</p>");
+        for g in &v.grasps {
+            let folder = std::path::Path::new(&g.folder);
+            let name = folder
+                .file_name()
+                .map_or_else(|| g.folder.clone(), |n| n.to_string_lossy().into_owned());
+            b.push_str(&format!("<h3>{} ({})</h3>", esc(&name), esc(&g.grasp_type)));
+            for t in grasp_tables(g) {
+                b.push_str(&table_html(&t));
+            }
+            let link = relative_link(report, folder);
+            let mut links = vec![("grasp.json", format!("{link}/grasp.json"))];
+            if g.view_page {
+                links.push(("3-D page", format!("{link}/view.html")));
+            }
+            if let Some(png) = &g.contact_png {
+                b.push_str(&figure(
+                    png,
+                    "the grasp's contacts",
+                    "The posed hand from the side that carries its contacts, the part not drawn.",
+                    &links,
+                ));
+            } else {
+                for (label, href) in links {
+                    b.push_str(&format!(
+                        "<p><a href=\"{}\">{}</a></p>",
+                        esc(&href),
+                        esc(label)
+                    ));
+                }
+            }
+        }
+        b.push_str("</section>\n");
+    }
+    if !v.poses.is_empty() {
+        b.push_str("<section id=\"poses\"><h2>10 · Posed hands</h2>");
+        b.push_str(&table_html(&pose_table(&v.poses)));
+        b.push_str("</section>\n");
+    }
 }
 
 #[cfg(test)]

@@ -145,5 +145,18 @@ pub fn subject_markdown(v: &SubjectValidation, figs: &ReportFigures) -> String {
             }
         }
     }
+    if !v.grasps.is_empty() {
+        s.push_str("\n## 9. Grasps\n\n");
+        for g in &v.grasps {
+            s.push_str(&format!("### {} ({})\n\n", g.folder, g.grasp_type));
+            for t in super::report_tables::grasp_tables(g) {
+                s.push_str(&table_markdown(&t));
+            }
+        }
+    }
+    if !v.poses.is_empty() {
+        s.push_str("\n## 10. Posed hands\n\n");
+        s.push_str(&table_markdown(&super::report_tables::pose_table(&v.poses)));
+    }
     s
 }

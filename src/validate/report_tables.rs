@@ -685,6 +685,85 @@ pub fn motion_tables(m: &super::motion_accuracy::MotionAccuracy) -> Vec<Table> {
     out
 }
 
+/// A grasp's figures as a table (one row per figure), then its contact area per link.
+pub fn grasp_tables(g: &super::grasp_pose_sections::GraspSection) -> [Table; 2] {
+    let yes = |b: bool| if b { "yes" } else { "no" };
+    let figures = Table {
+        head: vec!["figure".into(), "value".into()],
+        rows: [
+            ("scene", g.scene.clone(), false),
+            ("grasp type", g.grasp_type.clone(), false),
+            (
+                "force closure",
+                yes(g.force_closure).into(),
+                !g.force_closure,
+            ),
+            ("epsilon", format!("{:.4}", g.epsilon), false),
+            (
+                "holds (gravity directions held)",
+                format!(
+                    "{} ({} of {})",
+                    yes(g.holds),
+                    g.directions_held,
+                    g.directions
+                ),
+                !g.holds,
+            ),
+            (
+                "contact area",
+                format!("{:.0} mm²", g.total_contact_area_mm2),
+                false,
+            ),
+            (
+                "deepest penetration",
+                format!("{:.1} mm", g.max_penetration_mm),
+                false,
+            ),
+        ]
+        .into_iter()
+        .map(|(k, v, flag)| vec![Cell::new(k), Cell::flagged(v, flag)])
+        .collect(),
+        numeric: vec![false, true],
+        summary_rows: 0,
+        note: format!("From {}/grasp.json.", g.folder),
+    };
+    let areas = Table {
+        head: vec!["link".into(), "contact area (mm²)".into()],
+        rows: g
+            .contact_area_mm2
+            .iter()
+            .map(|(l, a)| vec![Cell::new(l.clone()), Cell::new(format!("{a:.1}"))])
+            .collect(),
+        numeric: vec![false, true],
+        summary_rows: 0,
+        note: "Links that touch the part.".into(),
+    };
+    [figures, areas]
+}
+
+/// The posed hands of the model folder, one row each.
+pub fn pose_table(poses: &[super::grasp_pose_sections::PoseRecord]) -> Table {
+    Table {
+        head: ["pose", "file", "deepest finger-finger penetration (mm)", "angles changed or clamped"]
+            .map(String::from)
+            .to_vec(),
+        rows: poses
+            .iter()
+            .map(|p| {
+                vec![
+                    Cell::new(p.pose.clone()),
+                    Cell::new(p.file.clone()),
+                    Cell::flagged(format!("{:.2}", p.penetration_mm), p.penetration_mm > 2.0),
+                    Cell::new(p.warnings.len().to_string()),
+                ]
+            })
+            .collect(),
+        numeric: vec![false, false, true, true],
+        summary_rows: 0,
+        note: "As `pose` measured them on the hand it wrote (NAME.pose.json beside NAME.glb): the deepest entry of one digit's skin into another's, and the angles it clamped to their limits or changed to keep the digits apart (flagged beyond 2 mm).".into(),
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -728,6 +807,8 @@ mod tests {
             validate_timings_s: Vec::new(),
             warnings: Vec::new(),
             motions: Vec::new(),
+            grasps: Vec::new(),
+            poses: Vec::new(),
             files: Vec::new(),
             thumbnail_png: None,
         }

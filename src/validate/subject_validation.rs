@@ -127,6 +127,12 @@ pub struct SubjectValidation {
     /// found.
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub motions: Vec<MotionAccuracy>,
+    /// The grasps given with `--grasp`, as their `grasp.json` says.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub grasps: Vec<super::grasp_pose_sections::GraspSection>,
+    /// The posed hands of the model folder, as their `NAME.pose.json` says.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub poses: Vec<super::grasp_pose_sections::PoseRecord>,
     /// Files written beside `metrics.json` (names).
     pub files: Vec<String>,
     /// The error map at thumbnail size (PNG), for the suite's index (`None`: no reference).

@@ -29,6 +29,18 @@ pub struct ViewGlb {
     pub role: &'static str,
     /// The GLB's bytes (metres, as glTF).
     pub bytes: Vec<u8>,
+    /// A per-vertex float attribute of its meshes that a click reads out (`None`: the point
+    /// alone).
+    pub value: Option<ViewValue>,
+}
+
+/// A custom per-vertex float attribute of a GLB (glTF name with a leading underscore, e.g.
+/// `_ERROR_MM`), read out where the reader clicks.
+#[derive(Clone, Debug, Serialize)]
+pub struct ViewValue {
+    pub attribute: String,
+    pub label: String,
+    pub unit: String,
 }
 
 /// A colour legend: named swatches, a viridis ramp from `min` to `max`, and what lies beyond.
@@ -282,6 +294,8 @@ struct MeshEntry<'a> {
     glb: String,
     role: &'a str,
     name: &'a str,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    value: Option<&'a ViewValue>,
 }
 
 #[derive(Serialize)]
@@ -313,6 +327,7 @@ pub fn view_html(page: &ViewPage) -> String {
                 glb: format!("ergohand-glb-{i}"),
                 role: g.role,
                 name: &g.name,
+                value: g.value.as_ref(),
             })
             .collect(),
         part_nodes: &page.part_nodes,
@@ -411,6 +426,11 @@ mod tests {
                 name: "hand".into(),
                 role: "scene",
                 bytes: b"glTF....".to_vec(),
+                value: Some(ViewValue {
+                    attribute: "_ERROR_MM".into(),
+                    label: "error".into(),
+                    unit: "mm".into(),
+                }),
             }],
             part_nodes: vec!["part".into()],
             legend: None,
@@ -438,6 +458,7 @@ mod tests {
         assert_eq!(v["frame"]["origin"][0], 1.0, "metres, as the GLBs");
         assert_eq!(v["frame"]["dorsal"][1], 1.0, "a unit vector");
         assert_eq!(v["view"], "palmar");
+        assert_eq!(v["meshes"][0]["value"]["attribute"], "_ERROR_MM");
         assert!(v.get("part_opacity").is_none());
         assert!(html.contains(
             "<script id=\"ergohand-glb-0\" type=\"application/octet-stream\">Z2xURi4uLi4=</script>"
