@@ -34,6 +34,8 @@ pub(crate) fn write_outputs(o: &GraspOutcome, out: &Path) -> Result<Vec<u8>> {
                 normals: None,
                 colors: Some(colours.iter().map(|&c| lin(c)).collect()),
                 skin: None,
+                attributes: Vec::new(),
+                morph_targets: Vec::new(),
             },
             crate::io::gltf::SceneMesh {
                 name: "part".into(),
@@ -41,6 +43,8 @@ pub(crate) fn write_outputs(o: &GraspOutcome, out: &Path) -> Result<Vec<u8>> {
                 normals: None,
                 colors: Some(vec![lin(part_grey); o.part_mesh.n_vertices()]),
                 skin: None,
+                attributes: Vec::new(),
+                morph_targets: Vec::new(),
             },
         ],
         animations: Vec::new(),

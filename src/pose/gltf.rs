@@ -96,6 +96,8 @@ pub fn skinned_scene(
                 joints,
                 weights: weights.clone(),
             }),
+            attributes: Vec::new(),
+            morph_targets: Vec::new(),
         }],
         animations: Vec::new(),
     }
@@ -184,6 +186,8 @@ pub fn animated_scene(
             normals: Some(p.mesh.vertex_normals()),
             colors: None,
             skin: None,
+            attributes: Vec::new(),
+            morph_targets: Vec::new(),
         });
         channels.extend(part_channels(1, &frames, p.poses, time));
     }

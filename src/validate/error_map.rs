@@ -278,6 +278,8 @@ pub fn write_error_map_glb(path: &Path, skin: &TriMesh, values: &[f64], top: f64
             normals: None,
             colors: Some(colours.into_iter().map(srgb_to_linear).collect()),
             skin: None,
+            attributes: Vec::new(),
+            morph_targets: Vec::new(),
         }],
         animations: Vec::new(),
     };

@@ -319,6 +319,8 @@ pub fn contact_map_scene(map: &ContactMap) -> Scene {
                 normals: None,
                 colors: lin(share_colours(&map.skin_count, map.frames)),
                 skin: None,
+                attributes: Vec::new(),
+                morph_targets: Vec::new(),
             },
             SceneMesh {
                 name: "part".into(),
@@ -326,6 +328,8 @@ pub fn contact_map_scene(map: &ContactMap) -> Scene {
                 normals: None,
                 colors: lin(share_colours(&map.part_count, map.frames)),
                 skin: None,
+                attributes: Vec::new(),
+                morph_targets: Vec::new(),
             },
         ],
         animations: Vec::new(),
