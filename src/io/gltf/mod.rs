@@ -270,7 +270,10 @@ pub fn write_glb(path: &Path, scene: &Scene, units: Units) -> Result<()> {
 /// Per [`SceneMesh`]: a root node without transform (the spec requires that of skinned mesh
 /// nodes), `POSITION` with `min`/`max`, `NORMAL` if given (renormalised; a zero normal is
 /// replaced by the mesh's angle-weighted vertex normal, else +Z, since the spec requires unit
-/// normals), `COLOR_0` if given (`f32` RGBA clamped to [0, 1]), `u32` indices. A skin adds a
+/// normals), `COLOR_0` if given (`f32` RGBA clamped to [0, 1]), each custom attribute as a
+/// FLOAT SCALAR accessor, morph targets as the primitive's `targets` (a `POSITION` accessor
+/// each, with `min`/`max`) with the mesh's `weights` and `extras.targetNames`, `u32` indices.
+/// A skin adds a
 /// node per joint, nested by [`SkinJoint::parent`] with `local` as its transform (written as TRS
 /// when the matrix decomposes, else as a matrix); a root joint whose `world` differs from its
 /// `local` gets a parent node holding `world * local^-1`, so both read back unchanged. Weights
@@ -279,7 +282,8 @@ pub fn write_glb(path: &Path, scene: &Scene, units: Units) -> Result<()> {
 /// Fails ([`Error::Invalid`], naming the mesh and item) on an empty mesh, attribute or weight
 /// lists whose length is not the vertex count, a joint index or parent out of range, a cycle
 /// of parents, a vertex of a skinned mesh without weight, more than 65536 joints, a non-finite
-/// value, or a joint whose `world` is not its parent's `world * local`.
+/// value, a joint whose `world` is not its parent's `world * local`, or a custom attribute
+/// whose name does not start with `_` (or is given twice).
 pub fn glb_bytes(scene: &Scene, units: Units) -> Result<Vec<u8>> {
     write::glb_bytes(scene, units)
 }
