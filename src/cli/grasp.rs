@@ -26,12 +26,18 @@ pub(crate) fn write_outputs(o: &GraspOutcome, out: &Path) -> Result<Vec<u8>> {
         [f(c[0]), f(c[1]), f(c[2]), 1.0]
     };
     let part_grey = [170u8, 175, 185];
+    // The skin is smooth (one normal per vertex keeps it homologous with skin.obj); the CAD
+    // part keeps its sharp edges (vertices split at creases).
+    let part = crate::geometry::crease_normals(
+        &o.part_mesh,
+        crate::geometry::crease_normals::DEFAULT_CREASE_DEG,
+    );
     let scene = crate::io::gltf::Scene {
         meshes: vec![
             crate::io::gltf::SceneMesh {
                 name: "hand".into(),
                 mesh: o.hand_mesh.clone(),
-                normals: None,
+                normals: Some(o.hand_mesh.vertex_normals()),
                 colors: Some(colours.iter().map(|&c| lin(c)).collect()),
                 skin: None,
                 attributes: Vec::new(),
@@ -39,9 +45,9 @@ pub(crate) fn write_outputs(o: &GraspOutcome, out: &Path) -> Result<Vec<u8>> {
             },
             crate::io::gltf::SceneMesh {
                 name: "part".into(),
-                mesh: o.part_mesh.clone(),
-                normals: None,
-                colors: Some(vec![lin(part_grey); o.part_mesh.n_vertices()]),
+                colors: Some(vec![lin(part_grey); part.mesh.n_vertices()]),
+                mesh: part.mesh,
+                normals: Some(part.normals),
                 skin: None,
                 attributes: Vec::new(),
                 morph_targets: Vec::new(),

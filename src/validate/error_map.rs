@@ -275,7 +275,7 @@ pub fn write_error_map_glb(path: &Path, skin: &TriMesh, values: &[f64], top: f64
         meshes: vec![SceneMesh {
             name: "error map".into(),
             mesh: skin.clone(),
-            normals: None,
+            normals: Some(skin.vertex_normals()),
             colors: Some(colours.into_iter().map(srgb_to_linear).collect()),
             skin: None,
             attributes: Vec::new(),
