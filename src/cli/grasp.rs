@@ -9,7 +9,7 @@ use crate::grasp::{
 use crate::io::output_paths::{check_output_dir, Inputs};
 use crate::io::Units;
 use crate::validate::view_page::{
-    view_html, Gradient, Legend, Swatch, ViewFrame, ViewGlb, ViewPage, ViewTable,
+    view_html, Gradient, Legend, Swatch, ViewFrame, ViewGlb, ViewPage, ViewTable, ViewValue,
 };
 use std::path::{Path, PathBuf};
 
@@ -26,6 +26,17 @@ pub(crate) fn write_outputs(o: &GraspOutcome, out: &Path) -> Result<Vec<u8>> {
         [f(c[0]), f(c[1]), f(c[2]), 1.0]
     };
     let part_grey = [170u8, 175, 185];
+    // The distances the colours show, for the page's readout (only when every vertex has one:
+    // an open part far from some vertex leaves them without).
+    let distance = o
+        .colour_distance
+        .iter()
+        .map(|d| d.map(|x| x as f32))
+        .collect::<Option<Vec<f32>>>()
+        .map(|values| crate::io::gltf::VertexAttribute {
+            name: DISTANCE_ATTRIBUTE.into(),
+            values,
+        });
     // The skin is smooth (one normal per vertex keeps it homologous with skin.obj); the CAD
     // part keeps its sharp edges (vertices split at creases).
     let part = crate::geometry::crease_normals(
@@ -40,7 +51,7 @@ pub(crate) fn write_outputs(o: &GraspOutcome, out: &Path) -> Result<Vec<u8>> {
                 normals: Some(o.hand_mesh.vertex_normals()),
                 colors: Some(colours.iter().map(|&c| lin(c)).collect()),
                 skin: None,
-                attributes: Vec::new(),
+                attributes: distance.into_iter().collect(),
                 morph_targets: Vec::new(),
             },
             crate::io::gltf::SceneMesh {
@@ -91,6 +102,10 @@ pub(crate) fn write_outputs(o: &GraspOutcome, out: &Path) -> Result<Vec<u8>> {
     Ok(png)
 }
 
+/// The hand's attribute in `grasp.glb`: each skin vertex's signed distance to the part, mm
+/// (negative inside), the value its contact-map colour shows.
+pub(crate) const DISTANCE_ATTRIBUTE: &str = "_DISTANCE_MM";
+
 /// The files [`write_outputs`] writes into its folder.
 pub(crate) const OUTPUT_FILES: [&str; 4] =
     ["grasp.json", "grasp.glb", "contact_map.png", "view.html"];
@@ -114,6 +129,11 @@ fn view_page(o: &GraspOutcome, glb: Vec<u8>) -> ViewPage {
             name: "hand and part".into(),
             role: "scene",
             bytes: glb,
+            value: Some(ViewValue {
+                attribute: DISTANCE_ATTRIBUTE.into(),
+                label: "distance to the part".into(),
+                unit: "mm".into(),
+            }),
         }],
         part_nodes: vec!["part".into()],
         legend: Some(Legend {

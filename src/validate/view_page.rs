@@ -25,6 +25,20 @@ pub struct ViewGlb {
     pub role: &'static str,
     /// The GLB's bytes (metres, as glTF).
     pub bytes: Vec<u8>,
+    /// A per-vertex float attribute of its meshes that a click reads out (`None`: none).
+    pub value: Option<ViewValue>,
+}
+
+/// A custom glTF vertex attribute (FLOAT SCALAR, name with a leading `_`) that the page reads
+/// out at a clicked point, interpolated over the hit triangle.
+#[derive(Clone, Debug, Serialize)]
+pub struct ViewValue {
+    /// The attribute's glTF name, e.g. `_DISTANCE_MM`.
+    pub attribute: String,
+    /// What it is, e.g. `distance to the part`.
+    pub label: String,
+    /// Its unit, e.g. `mm`.
+    pub unit: String,
 }
 
 /// A colour legend: named swatches, a viridis ramp from `min` to `max`, and what lies beyond.
@@ -125,6 +139,8 @@ struct MeshEntry<'a> {
     glb: String,
     role: &'a str,
     name: &'a str,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    value: Option<&'a ViewValue>,
 }
 
 #[derive(Serialize)]
@@ -154,6 +170,7 @@ pub fn view_html(page: &ViewPage) -> String {
                 glb: format!("ergohand-glb-{i}"),
                 role: g.role,
                 name: &g.name,
+                value: g.value.as_ref(),
             })
             .collect(),
         part_nodes: &page.part_nodes,
@@ -246,6 +263,7 @@ mod tests {
                 name: "hand".into(),
                 role: "scene",
                 bytes: b"glTF....".to_vec(),
+                value: None,
             }],
             part_nodes: vec!["part".into()],
             legend: None,
