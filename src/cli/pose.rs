@@ -192,7 +192,7 @@ pub(crate) fn pose_job(
                     )
                 }
             );
-            Some((rig.tets, posed))
+            Some((rig.tets, rig.labels, posed))
         }
     };
     // Measured on the skin as written: the resolver worked on that very skin (corrected when
@@ -201,7 +201,7 @@ pub(crate) fn pose_job(
     let penetration_mm = resolved_depth_mm.unwrap_or_else(|| {
         let max_depth = ResolveOptions::default().max_depth_mm;
         match &baked {
-            Some((_, p)) => quality::finger_penetration(&p.skin, &hand.weights, max_depth),
+            Some((_, _, p)) => quality::finger_penetration(&p.skin, &hand.weights, max_depth),
             None => quality::finger_penetration(
                 &hand.posed_skin(&pose, method),
                 &hand.weights,
@@ -225,20 +225,23 @@ pub(crate) fn pose_job(
             write_glb(out_file, &scene, Units::Metres)?;
         }
         Some("vtk") | Some("msh") => {
-            let (tets, b) = baked.ok_or_else(|| Error::invalid("posed tet mesh missing"))?;
+            let (tets, labels, b) =
+                baked.ok_or_else(|| Error::invalid("posed tet mesh missing"))?;
             let posed = crate::tet::TetMesh {
                 nodes: b.nodes,
                 tets,
             };
+            // Each tetrahedron's link and the boundary faces, as an FE user needs them.
+            let groups = quality::link_groups(&posed, &labels)?;
             if ext.as_deref() == Some("vtk") {
-                crate::io::vtk::write_vtk(out_file, &posed, Units::Millimetres)?;
+                crate::io::vtk::write_vtk(out_file, &posed, Units::Millimetres, Some(&groups))?;
             } else {
-                crate::io::gmsh::write_msh(out_file, &posed, Units::Millimetres)?;
+                crate::io::gmsh::write_msh(out_file, &posed, Units::Millimetres, Some(&groups))?;
             }
         }
         _ => {
             let posed = match baked {
-                Some((_, b)) => b.skin,
+                Some((_, _, b)) => b.skin,
                 None => hand.posed_skin(&pose, method),
             };
             write_obj(out_file, &posed, Units::Millimetres, None)?;
