@@ -49,8 +49,9 @@ fn bbox<'a>(points: impl Iterator<Item = &'a crate::geometry::Point>, s: f64) ->
 /// and a solver unites groups more easily than it splits one. Tetrahedra keep the element
 /// tag `t + 1` (the blocks list them by group, so tags are not in file order); the boundary
 /// triangles (wound counter-clockwise from outside) follow with tags from `n_tets + 1`. The
-/// nodes are one block on the first volume entity. The `signed_volume` view lists the
-/// tetrahedra only, by tag.
+/// nodes are one block on the first volume entity. The `signed_volume` view gives every
+/// element by tag, 0 for the triangles (they have no volume; meshio refuses a view that
+/// leaves elements out).
 pub fn write_msh(
     path: &Path,
     mesh: &TetMesh,
@@ -176,12 +177,18 @@ pub fn write_msh(
         }
         writeln!(w, "$EndElements")?;
         // Signed, so that an inverted element shows (negative); in the file's unit cubed.
+        // Triangles get 0 (they hold no volume): meshio refuses element data that covers only
+        // some of the elements.
         writeln!(
             w,
-            "$ElementData\n1\n\"signed_volume\"\n1\n0.0\n3\n0\n1\n{t}"
+            "$ElementData\n1\n\"signed_volume\"\n1\n0.0\n3\n0\n1\n{}",
+            t + b
         )?;
         for e in 0..t {
             writeln!(w, "{} {:e}", e + 1, mesh.tet_volume(e) * s * s * s)?;
+        }
+        for k in 0..b {
+            writeln!(w, "{} 0", t + k + 1)?;
         }
         writeln!(w, "$EndElementData")
     })
@@ -328,7 +335,11 @@ mod tests {
         assert_eq!(faces, 12);
         assert!(seen.iter().all(|&n| n == 1));
         let data = at("$ElementData");
-        assert_eq!(lines[data + 8], "6");
+        assert_eq!(lines[data + 8], "18");
         assert!(lines[data + 9].starts_with("1 "));
+        assert_eq!(
+            lines[data + 15..data + 27],
+            (7..=18).map(|e| format!("{e} 0")).collect::<Vec<_>>()
+        );
     }
 }
