@@ -76,8 +76,8 @@ fn run() -> Result<()> {
     };
 
     std::fs::create_dir_all(&out).map_err(|e| Error::io(&out, e))?;
-    vtk::write_vtk(&out.join("rest.vtk"), &rest, Units::Millimetres)?;
-    vtk::write_vtk(&out.join("arap.vtk"), &arap, Units::Millimetres)?;
+    vtk::write_vtk(&out.join("rest.vtk"), &rest, Units::Millimetres, None)?;
+    vtk::write_vtk(&out.join("arap.vtk"), &arap, Units::Millimetres, None)?;
     let boundary = serde_json::json!({
         "units": "mm",
         "nodes": binding.nodes,

@@ -28,6 +28,9 @@ pub struct Reconstruction {
     pub skin: SkinFit,
     /// The subject's tetrahedral mesh (`tet.vtk`, `tet.msh`).
     pub tet: TetMesh,
+    /// Its groups by link (each tetrahedron's dominant link, the boundary faces), which the
+    /// tet files carry for finite-element users ([`crate::pose::quality::link_groups`]).
+    pub tet_groups: crate::tet::TetGroups,
     /// The skinned individual hand (`hand.glb`).
     pub hand: IndividualHand,
     /// What `report.json` holds.
@@ -241,11 +244,12 @@ fn stages<'p>(
             w
         }
     };
+    let labels = crate::pose::quality::tet_segments(&tet.tets, &node_weights);
+    let tet_groups = crate::pose::quality::link_groups(&tet, &labels)?;
     let t_tet = t2.elapsed().as_secs_f64();
     // An inverted element is a suspect model: said, with where, never only counted.
     let inverted_tets = tet_report.inverted;
     if inverted_tets > 0 {
-        let labels = crate::pose::quality::tet_segments(&tet.tets, &node_weights);
         let by_link = crate::pose::quality::inverted_by_link(&tet.nodes, &tet.tets, &labels);
         warnings.push(format!(
             "tet.vtk: {inverted_tets} of {} tetrahedra are inverted (negative volume) after \
@@ -298,6 +302,7 @@ fn stages<'p>(
         link_model,
         skin,
         tet,
+        tet_groups,
         hand,
         report,
     })

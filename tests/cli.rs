@@ -928,6 +928,10 @@ fn view_page_holds_the_grasp(out: &Path, r: &serde_json::Value) {
         assert!((a - want).abs() <= 0.05, "{row}");
     }
     assert_eq!(data["part_nodes"][0], "part");
+    assert_eq!(
+        data["meshes"][0]["value"],
+        serde_json::json!({"attribute": "_DISTANCE_MM", "label": "distance to the part", "unit": "mm"})
+    );
     let glb = between("<script id=\"ergohand-glb-0\" type=\"application/octet-stream\">");
     // The reference crate decodes it (an independent reader of the page's GLB).
     let decoded = base64::decode(glb).unwrap();
@@ -1194,6 +1198,123 @@ fn grasp_and_pose_in_the_report(subj: &Path, model: &Path, tmp: &Path) {
     }
 }
 
+/// Closest point of triangle `abc` to `p` (Ericson, "Real-Time Collision Detection" 5.1.5):
+/// written here so the check does not share the crate's AABB-tree code.
+fn closest_on_triangle(p: [f64; 3], a: [f64; 3], b: [f64; 3], c: [f64; 3]) -> [f64; 3] {
+    let sub = |u: [f64; 3], v: [f64; 3]| [u[0] - v[0], u[1] - v[1], u[2] - v[2]];
+    let dot = |u: [f64; 3], v: [f64; 3]| u[0] * v[0] + u[1] * v[1] + u[2] * v[2];
+    let at = |o: [f64; 3], u: [f64; 3], t: f64| [o[0] + t * u[0], o[1] + t * u[1], o[2] + t * u[2]];
+    let (ab, ac, ap) = (sub(b, a), sub(c, a), sub(p, a));
+    let (d1, d2) = (dot(ab, ap), dot(ac, ap));
+    if d1 <= 0.0 && d2 <= 0.0 {
+        return a;
+    }
+    let bp = sub(p, b);
+    let (d3, d4) = (dot(ab, bp), dot(ac, bp));
+    if d3 >= 0.0 && d4 <= d3 {
+        return b;
+    }
+    let vc = d1 * d4 - d3 * d2;
+    if vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0 {
+        return at(a, ab, d1 / (d1 - d3));
+    }
+    let cp = sub(p, c);
+    let (d5, d6) = (dot(ab, cp), dot(ac, cp));
+    if d6 >= 0.0 && d5 <= d6 {
+        return c;
+    }
+    let vb = d5 * d2 - d1 * d6;
+    if vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0 {
+        return at(a, ac, d2 / (d2 - d6));
+    }
+    let va = d3 * d6 - d5 * d4;
+    if va <= 0.0 && (d4 - d3) >= 0.0 && (d5 - d6) >= 0.0 {
+        return at(b, sub(c, b), (d4 - d3) / ((d4 - d3) + (d5 - d6)));
+    }
+    let denom = 1.0 / (va + vb + vc);
+    let (v, w) = (vb * denom, vc * denom);
+    [
+        a[0] + ab[0] * v + ac[0] * w,
+        a[1] + ab[1] * v + ac[1] * w,
+        a[2] + ab[2] * v + ac[2] * w,
+    ]
+}
+
+/// Winding number of a closed triangle mesh about `p` (sum of the triangles' solid angles over
+/// 4π, Van Oosterom & Strackee 1983): 1 inside, 0 outside.
+fn winding_number(p: [f64; 3], tris: &[[[f64; 3]; 3]]) -> f64 {
+    let mut total = 0.0;
+    for t in tris {
+        let r = t.map(|q| [q[0] - p[0], q[1] - p[1], q[2] - p[2]]);
+        let len = |u: [f64; 3]| (u[0] * u[0] + u[1] * u[1] + u[2] * u[2]).sqrt();
+        let dot = |u: [f64; 3], v: [f64; 3]| u[0] * v[0] + u[1] * v[1] + u[2] * v[2];
+        let (a, b, c) = (r[0], r[1], r[2]);
+        let cross = [
+            b[1] * c[2] - b[2] * c[1],
+            b[2] * c[0] - b[0] * c[2],
+            b[0] * c[1] - b[1] * c[0],
+        ];
+        let (la, lb, lc) = (len(a), len(b), len(c));
+        let num = dot(a, cross);
+        let den = la * lb * lc + dot(a, b) * lc + dot(a, c) * lb + dot(b, c) * la;
+        total += 2.0 * num.atan2(den);
+    }
+    total / (4.0 * std::f64::consts::PI)
+}
+
+/// `grasp.glb` read back: both meshes carry unit normals, and the hand's `_DISTANCE_MM` equals each vertex's signed distance to the part computed here by
+/// brute force (closest point over every part triangle; inside by the winding number).
+fn grasp_glb_carries_normals_and_distances(path: &Path) {
+    let scene = ergohand::io::gltf::read_gltf(path, Units::Metres).unwrap();
+    let hand = scene.meshes.iter().find(|m| m.name == "hand").unwrap();
+    let part = scene.meshes.iter().find(|m| m.name == "part").unwrap();
+    for m in [hand, part] {
+        let n = m.normals.as_ref().expect("normals");
+        assert_eq!(n.len(), m.mesh.n_vertices());
+        assert!(
+            n.iter().all(|v| (v.norm() - 1.0).abs() < 1e-6),
+            "{}",
+            m.name
+        );
+    }
+    let dist = &hand
+        .attributes
+        .iter()
+        .find(|a| a.name == "_DISTANCE_MM")
+        .expect("_DISTANCE_MM")
+        .values;
+    assert_eq!(dist.len(), hand.mesh.n_vertices());
+    let tris: Vec<[[f64; 3]; 3]> = part
+        .mesh
+        .faces
+        .iter()
+        .map(|f| f.map(|v| part.mesh.vertices[v].coords.into()))
+        .collect();
+    let nearest = (0..dist.len())
+        .min_by(|&a, &b| dist[a].total_cmp(&dist[b]))
+        .unwrap();
+    let farthest = (0..dist.len())
+        .max_by(|&a, &b| dist[a].total_cmp(&dist[b]))
+        .unwrap();
+    assert!(dist[nearest] <= 1.0, "the hand touches the part");
+    let mut checked = vec![nearest, farthest];
+    checked.extend((0..dist.len()).step_by(dist.len() / 12));
+    for v in checked {
+        let p: [f64; 3] = hand.mesh.vertices[v].coords.into();
+        let unsigned = tris
+            .iter()
+            .map(|t| distance(p, closest_on_triangle(p, t[0], t[1], t[2])))
+            .fold(f64::INFINITY, f64::min);
+        let inside = winding_number(p, &tris) > 0.5;
+        let want = if inside { -unsigned } else { unsigned };
+        let got = f64::from(dist[v]);
+        assert!(
+            (got - want).abs() < 1e-3,
+            "vertex {v}: _DISTANCE_MM {got} mm, recomputed {want} mm"
+        );
+    }
+}
+
 /// `ergohand grasp` as a product designer runs it: the shipped bottle scene (given approach)
 /// writes `grasp.json` with the keys, a GLB whose hand and part carry the contact map
 /// as vertex colours, and a PNG; a scene with an unknown grasp type or a part in metres gets a
@@ -1242,6 +1363,7 @@ fn grasp_writes_report_glb_and_map_and_refuses_bad_scenes() {
         }
     }
     assert!(coloured >= 2, "hand and part");
+    grasp_glb_carries_normals_and_distances(&out.join("grasp.glb"));
     let png = std::fs::read(out.join("contact_map.png")).unwrap();
     assert_eq!(&png[..8], b"\x89PNG\r\n\x1a\n");
     view_page_holds_the_grasp(&out, &r);

@@ -8,7 +8,7 @@ use crate::grasp::{
 use crate::io::output_paths::{check_output_dir, Inputs};
 use crate::io::Units;
 use crate::validate::view_page::{
-    view_html, Gradient, Legend, Swatch, ViewFrame, ViewGlb, ViewPage, ViewTable,
+    view_html, Gradient, Legend, Swatch, ViewFrame, ViewGlb, ViewPage, ViewTable, ViewValue,
 };
 use std::path::{Path, PathBuf};
 
@@ -25,21 +25,42 @@ pub(crate) fn write_outputs(o: &GraspOutcome, out: &Path) -> Result<Vec<u8>> {
         [f(c[0]), f(c[1]), f(c[2]), 1.0]
     };
     let part_grey = [170u8, 175, 185];
+    // The distances the colours show, for the page's readout (only when every vertex has one:
+    // an open part far from some vertex leaves them without).
+    let distance = o
+        .colour_distance
+        .iter()
+        .map(|d| d.map(|x| x as f32))
+        .collect::<Option<Vec<f32>>>()
+        .map(|values| crate::io::gltf::VertexAttribute {
+            name: DISTANCE_ATTRIBUTE.into(),
+            values,
+        });
+    // The skin is smooth (one normal per vertex keeps it homologous with skin.obj); the CAD
+    // part keeps its sharp edges (vertices split at creases).
+    let part = crate::geometry::crease_normals(
+        &o.part_mesh,
+        crate::geometry::crease_normals::DEFAULT_CREASE_DEG,
+    );
     let scene = crate::io::gltf::Scene {
         meshes: vec![
             crate::io::gltf::SceneMesh {
                 name: "hand".into(),
                 mesh: o.hand_mesh.clone(),
-                normals: None,
+                normals: Some(o.hand_mesh.vertex_normals()),
                 colors: Some(colours.iter().map(|&c| lin(c)).collect()),
                 skin: None,
+                attributes: distance.into_iter().collect(),
+                morph_targets: Vec::new(),
             },
             crate::io::gltf::SceneMesh {
                 name: "part".into(),
-                mesh: o.part_mesh.clone(),
-                normals: None,
-                colors: Some(vec![lin(part_grey); o.part_mesh.n_vertices()]),
+                colors: Some(vec![lin(part_grey); part.mesh.n_vertices()]),
+                mesh: part.mesh,
+                normals: Some(part.normals),
                 skin: None,
+                attributes: Vec::new(),
+                morph_targets: Vec::new(),
             },
         ],
         animations: Vec::new(),
@@ -64,6 +85,10 @@ pub(crate) fn write_outputs(o: &GraspOutcome, out: &Path) -> Result<Vec<u8>> {
     Ok(png)
 }
 
+/// The hand's attribute in `grasp.glb`: each skin vertex's signed distance to the part, mm
+/// (negative inside), the value its contact-map colour shows.
+pub(crate) const DISTANCE_ATTRIBUTE: &str = "_DISTANCE_MM";
+
 /// The files [`write_outputs`] writes into its folder.
 pub(crate) const OUTPUT_FILES: [&str; 4] =
     ["grasp.json", "grasp.glb", "contact_map.png", "view.html"];
@@ -87,7 +112,11 @@ fn view_page(o: &GraspOutcome, glb: Vec<u8>) -> ViewPage {
             name: "hand and part".into(),
             role: "scene",
             bytes: glb,
-            value: None,
+            value: Some(ViewValue {
+                attribute: DISTANCE_ATTRIBUTE.into(),
+                label: "distance to the part".into(),
+                unit: "mm".into(),
+            }),
         }],
         part_nodes: vec!["part".into()],
         legend: Some(Legend {
@@ -372,6 +401,8 @@ pub fn grasp_population(
                         .collect(),
                 ),
                 skin: None,
+                attributes: Vec::new(),
+                morph_targets: Vec::new(),
             }],
             animations: Vec::new(),
         },

@@ -197,7 +197,7 @@ pub(crate) fn pose_job(
                     )
                 }
             );
-            Some((rig.tets, posed))
+            Some((rig.tets, rig.labels, posed))
         }
     };
     // Measured on the skin as written: the resolver worked on that very skin (corrected when
@@ -206,7 +206,9 @@ pub(crate) fn pose_job(
     let penetration_mm = resolved_depth_mm.unwrap_or_else(|| {
         let max_depth = ResolveOptions::default().max_depth_mm;
         match &baked {
-            Some((_, p)) if !glb => quality::finger_penetration(&p.skin, &hand.weights, max_depth),
+            Some((_, _, p)) if !glb => {
+                quality::finger_penetration(&p.skin, &hand.weights, max_depth)
+            }
             _ => quality::finger_penetration(
                 &hand.posed_skin(&pose, method),
                 &hand.weights,
@@ -222,11 +224,11 @@ pub(crate) fn pose_job(
     let volume_note = baked
         .as_ref()
         .filter(|_| opts.preserve_volume && !glb)
-        .map(|(_, b)| signed_worst(&b.volume_changes));
+        .map(|(_, _, b)| signed_worst(&b.volume_changes));
     let inverted = baked
         .as_ref()
         .filter(|_| matches!(ext.as_deref(), Some("vtk") | Some("msh")))
-        .map(|(_, b)| b.untangle.inverted_after);
+        .map(|(_, _, b)| b.untangle.inverted_after);
     let shown = match ext.as_deref() {
         Some("glb") => {
             let scene = gltf::skinned_scene(
@@ -237,7 +239,7 @@ pub(crate) fn pose_job(
                 Some(&pose),
             );
             write_glb(out_file, &scene, Units::Metres)?;
-            if let Some((_, b)) = &baked {
+            if let Some((_, _, b)) = &baked {
                 let path = baked_glb_path(out_file);
                 write_glb(&path, &baked_scene(&b.skin), Units::Metres)?;
                 log::log!(
@@ -253,15 +255,18 @@ pub(crate) fn pose_job(
             }
         }
         Some("vtk") | Some("msh") => {
-            let (tets, b) = baked.ok_or_else(|| Error::invalid("posed tet mesh missing"))?;
+            let (tets, labels, b) =
+                baked.ok_or_else(|| Error::invalid("posed tet mesh missing"))?;
             let posed = crate::tet::TetMesh {
                 nodes: b.nodes,
                 tets,
             };
+            // Each tetrahedron's link and the boundary faces, as an FE user needs them.
+            let groups = quality::link_groups(&posed, &labels)?;
             if ext.as_deref() == Some("vtk") {
-                crate::io::vtk::write_vtk(out_file, &posed, Units::Millimetres)?;
+                crate::io::vtk::write_vtk(out_file, &posed, Units::Millimetres, Some(&groups))?;
             } else {
-                crate::io::gmsh::write_msh(out_file, &posed, Units::Millimetres)?;
+                crate::io::gmsh::write_msh(out_file, &posed, Units::Millimetres, Some(&groups))?;
             }
             Shown {
                 skin: b.skin.vertices,
@@ -275,7 +280,7 @@ pub(crate) fn pose_job(
         }
         _ => {
             let (posed, how) = match baked {
-                Some((_, b)) => (
+                Some((_, _, b)) => (
                     b.skin,
                     "dual-quaternion skinning with each finger segment's volume kept",
                 ),
@@ -350,6 +355,8 @@ fn baked_scene(skin: &crate::geometry::TriMesh) -> crate::io::gltf::Scene {
             normals: Some(skin.vertex_normals()),
             colors: None,
             skin: None,
+            attributes: Vec::new(),
+            morph_targets: Vec::new(),
         }],
         animations: Vec::new(),
     }
@@ -485,7 +492,6 @@ mod tests {
     use crate::anatomy::Side;
     use crate::pose::{named_pose, read_pose_file};
     use crate::template::load_template;
-    use crate::validate::view_page::{view_html, ViewFrame, ViewPage, ViewRig, ViewTable};
 
     /// `ergohand pose` end to end on a `reconstruct`-style folder holding the template: a built-in
     /// pose to GLB (read back: skinned, joints posed) and a pose file to OBJ (the DQS posed skin),

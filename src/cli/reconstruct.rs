@@ -189,8 +189,9 @@ fn write_model(r: &crate::reconstruct::Reconstruction, out: &Path) -> Result<()>
         Units::Millimetres,
         None,
     )?;
-    crate::io::vtk::write_vtk(&out.join("tet.vtk"), &r.tet, Units::Millimetres)?;
-    crate::io::gmsh::write_msh(&out.join("tet.msh"), &r.tet, Units::Millimetres)?;
+    let groups = Some(&r.tet_groups);
+    crate::io::vtk::write_vtk(&out.join("tet.vtk"), &r.tet, Units::Millimetres, groups)?;
+    crate::io::gmsh::write_msh(&out.join("tet.msh"), &r.tet, Units::Millimetres, groups)?;
     let h = &r.hand;
     let scene = crate::pose::gltf::skinned_scene("hand", &h.skin, &h.weights, &h.skeleton, None);
     crate::io::gltf::write_glb(&out.join("hand.glb"), &scene, Units::Metres)?;

@@ -1,9 +1,10 @@
 //! Geometry core: indexed triangle meshes in f64 millimetres, their topology, rigid and similarity
-//! registration (Horn 1987), Loop subdivision, closest-point queries (AABB tree) and plane
-//! sections.
+//! registration (Horn 1987), Loop subdivision, closest-point queries (AABB tree), plane
+//! sections and shading normals split at creases.
 
 pub mod closest_point;
 pub mod convex_hull_6d;
+pub mod crease_normals;
 pub mod horn;
 pub mod loop_subdivision;
 pub mod marching_tetrahedra;
@@ -13,6 +14,7 @@ pub mod sparse_cholesky;
 pub mod tet_mesh;
 pub mod topology;
 
+pub use crease_normals::{crease_normals, CreaseSplit};
 pub use horn::{absolute_orientation, Registration};
 pub use mesh::TriMesh;
 pub use plane_section::{plane_section, Plane, SectionLoop};

@@ -10,6 +10,74 @@ use crate::geometry::{Point, TriMesh, Vec3};
 use rayon::prelude::*;
 use serde::Serialize;
 
+/// Named groups of a tetrahedral mesh for finite-element users: each tetrahedron's group
+/// (a material region) and the boundary triangles (where loads and contact go), each with
+/// its tetrahedron's group, as Gmsh's physical groups and VTK cell data carry them.
+#[derive(Clone, Debug, PartialEq)]
+pub struct TetGroups {
+    /// Group names, indexed by group id.
+    pub names: Vec<String>,
+    /// Per tetrahedron, its group id (index into `names`).
+    pub tet_group: Vec<u32>,
+    /// The boundary: the faces of exactly one tetrahedron, wound counter-clockwise seen from
+    /// outside that tetrahedron ([`TetMesh::boundary_faces_with_tets`]), each with that
+    /// tetrahedron's group id; in tetrahedron order.
+    pub boundary: Vec<([usize; 3], u32)>,
+}
+
+impl TetGroups {
+    /// The groups of `mesh` with `tet_group` (one id per tetrahedron, each an index into
+    /// `names`); the boundary is computed. Errors ([`Error::Invalid`]) on a count or an id out of
+    /// range.
+    pub fn new(mesh: &TetMesh, names: Vec<String>, tet_group: Vec<u32>) -> Result<TetGroups> {
+        let g = TetGroups {
+            boundary: mesh
+                .boundary_faces_with_tets()
+                .into_iter()
+                .map(|(f, t)| (f, tet_group.get(t).copied().unwrap_or(0)))
+                .collect(),
+            names,
+            tet_group,
+        };
+        g.check(mesh)?;
+        Ok(g)
+    }
+
+    /// Whether these groups fit `mesh`: one id per tetrahedron, ids and boundary nodes in
+    /// range (what a writer checks before it starts).
+    pub fn check(&self, mesh: &TetMesh) -> Result<()> {
+        if self.tet_group.len() != mesh.n_tets() {
+            return Err(Error::invalid(format!(
+                "tet groups: {} group ids for {} tetrahedra",
+                self.tet_group.len(),
+                mesh.n_tets()
+            )));
+        }
+        let n = self.names.len() as u32;
+        let bad_id = self
+            .tet_group
+            .iter()
+            .chain(self.boundary.iter().map(|b| &b.1))
+            .find(|&&g| g >= n);
+        if let Some(g) = bad_id {
+            return Err(Error::invalid(format!(
+                "tet groups: group id {g}, but there are {n} names"
+            )));
+        }
+        if let Some((f, _)) = self
+            .boundary
+            .iter()
+            .find(|(f, _)| f.iter().any(|&v| v >= mesh.n_nodes()))
+        {
+            return Err(Error::invalid(format!(
+                "tet groups: boundary face {f:?} names a node beyond the mesh's {}",
+                mesh.n_nodes()
+            )));
+        }
+        Ok(())
+    }
+}
+
 /// A tetrahedral mesh in mm. Every tetrahedron `[a, b, c, d]` is positively oriented:
 /// `(b - a) · ((c - a) × (d - a)) > 0` (checked by [`TetMesh::inverted_count`]).
 #[derive(Clone, Debug, PartialEq)]
@@ -194,6 +262,14 @@ impl TetMesh {
     /// (counter-clockwise seen from outside, as [`TriMesh`] expects), in a deterministic order
     /// (by tetrahedron, then by the corner each face is opposite).
     pub(crate) fn boundary_faces(&self) -> Vec<[usize; 3]> {
+        self.boundary_faces_with_tets()
+            .into_iter()
+            .map(|(f, _)| f)
+            .collect()
+    }
+
+    /// [`Self::boundary_faces`] with the tetrahedron each face belongs to.
+    pub fn boundary_faces_with_tets(&self) -> Vec<([usize; 3], usize)> {
         // Face opposite corner i of a positive tet, wound so its normal points away from i.
         const FACES: [[usize; 3]; 4] = [[1, 2, 3], [0, 3, 2], [0, 1, 3], [0, 2, 1]];
         // Sort the sorted-corner keys of all faces: a face is on the boundary when its key
@@ -220,14 +296,13 @@ impl TetMesh {
             i = j;
         }
         single.sort_unstable();
-        let out: Vec<[usize; 3]> = single
+        single
             .into_iter()
             .map(|id| {
                 let (t, i) = (id as usize / 4, id as usize % 4);
-                FACES[i].map(|c| self.tets[t][c])
+                (FACES[i].map(|c| self.tets[t][c]), t)
             })
-            .collect();
-        out
+            .collect()
     }
 
     /// The boundary surface as a triangle mesh over all nodes (interior nodes unreferenced).

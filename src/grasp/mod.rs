@@ -200,7 +200,9 @@ pub struct GraspOutcome {
     pub hand_mesh: TriMesh,
     /// Contact set of the final posture.
     pub contacts: ContactSet,
-    /// Per skin vertex, signed distance to the part within [`COLOUR_RANGE_MM`] (contact map).
+    /// Per skin vertex, signed distance to the part, mm (negative inside a closed part), at
+    /// any distance: the contact map shows it up to [`COLOUR_RANGE_MM`] and `grasp.glb`
+    /// carries it. `None` where no distance could be found (not for a non-empty part).
     pub colour_distance: Vec<Option<f64>>,
     /// Part in the world.
     pub part_mesh: TriMesh,
@@ -440,7 +442,7 @@ pub fn run_scene_on(
             scene.grasp.name()
         ));
     }
-    let colour_distance = contact::vertex_distances(part, &hand_mesh.vertices, COLOUR_RANGE_MM)
+    let colour_distance = contact::vertex_distances(part, &hand_mesh.vertices, f64::INFINITY)
         .into_iter()
         .map(|r| r.map(|x| x.0))
         .collect();
@@ -518,8 +520,8 @@ pub fn contact_colours(distance: &[Option<f64>], tol: f64) -> Vec<[u8; 3]> {
         .iter()
         .map(|d| match d {
             Some(d) if *d <= tol => [220, 30, 30],
-            Some(d) => crate::render::viridis((d / COLOUR_RANGE_MM).clamp(0.0, 1.0)),
-            None => [200, 200, 200],
+            Some(d) if *d <= COLOUR_RANGE_MM => crate::render::viridis(d / COLOUR_RANGE_MM),
+            _ => [200, 200, 200],
         })
         .collect()
 }

@@ -11,20 +11,56 @@
 use super::atomic::{read_bytes, write_atomic};
 use super::Units;
 use crate::error::{Error, Result};
-use crate::geometry::tet_mesh::{dihedral_angles, TetMesh};
+use crate::geometry::tet_mesh::{dihedral_angles, TetGroups, TetMesh};
 use crate::geometry::Point;
 use std::path::Path;
 
 /// VTK's cell type id of the linear tetrahedron.
 pub(crate) const VTK_TETRA: u32 = 10;
 
+/// VTK's cell type id of the linear triangle.
+pub(crate) const VTK_TRIANGLE: u32 = 5;
+
 /// Write `mesh` (mm) as a legacy ASCII VTK unstructured grid with coordinates in `units`, with
-/// a cell scalar `min_dihedral_deg` (each tetrahedron's smallest dihedral angle).
-pub fn write_vtk(path: &Path, mesh: &TetMesh, units: Units) -> Result<()> {
+/// cell scalars `min_dihedral_deg` (each tetrahedron's smallest dihedral angle) and
+/// `signed_volume` (the file's unit cubed).
+///
+/// With `groups`, the boundary triangles follow the tetrahedra as `VTK_TRIANGLE` cells (wound
+/// counter-clockwise from outside), and two integer cell scalars are added: `link` (the cell's
+/// group id; for a triangle, its tetrahedron's) and `boundary` (1 for a triangle, 0 for a
+/// tetrahedron). A triangle has 0 for `min_dihedral_deg` and `signed_volume` (it has neither;
+/// 0 rather than NaN so every reader and colour map takes the field), so select `boundary == 0`
+/// before reading those. The group names go into the title line as `groups: 0 ARM 1 PALM ...`
+/// (legacy VTK has no place for names of integer values; left out if the line would pass the
+/// format's 256 characters).
+pub fn write_vtk(
+    path: &Path,
+    mesh: &TetMesh,
+    units: Units,
+    groups: Option<&TetGroups>,
+) -> Result<()> {
+    if let Some(g) = groups {
+        g.check(mesh).map_err(|e| e.in_file(path))?;
+    }
     let s = 1.0 / units.to_mm();
+    let boundary: &[([usize; 3], u32)] = groups.map_or(&[], |g| &g.boundary);
+    let (t, b) = (mesh.n_tets(), boundary.len());
+    let mut title = format!("ergohand tetrahedral mesh (units: {units:?})");
+    if let Some(g) = groups {
+        let names: Vec<String> = g
+            .names
+            .iter()
+            .enumerate()
+            .map(|(i, n)| format!("{i} {n}"))
+            .collect();
+        let with = format!("{title}; groups: {}", names.join(" "));
+        if with.len() < 256 && !with.contains('\n') {
+            title = with;
+        }
+    }
     write_atomic(path, |w| {
         writeln!(w, "# vtk DataFile Version 3.0")?;
-        writeln!(w, "ergohand tetrahedral mesh (units: {units:?})")?;
+        writeln!(w, "{title}")?;
         writeln!(w, "ASCII")?;
         writeln!(w, "DATASET UNSTRUCTURED_GRID")?;
         writeln!(w, "POINTS {} double", mesh.n_nodes())?;
@@ -32,28 +68,52 @@ pub fn write_vtk(path: &Path, mesh: &TetMesh, units: Units) -> Result<()> {
             // `{:?}` prints the shortest text that reads back to the same f64.
             writeln!(w, "{:?} {:?} {:?}", p.x * s, p.y * s, p.z * s)?;
         }
-        writeln!(w, "CELLS {} {}", mesh.n_tets(), 5 * mesh.n_tets())?;
-        for t in &mesh.tets {
-            writeln!(w, "4 {} {} {} {}", t[0], t[1], t[2], t[3])?;
+        writeln!(w, "CELLS {} {}", t + b, 5 * t + 4 * b)?;
+        for q in &mesh.tets {
+            writeln!(w, "4 {} {} {} {}", q[0], q[1], q[2], q[3])?;
         }
-        writeln!(w, "CELL_TYPES {}", mesh.n_tets())?;
-        for _ in &mesh.tets {
+        for (f, _) in boundary {
+            writeln!(w, "3 {} {} {}", f[0], f[1], f[2])?;
+        }
+        writeln!(w, "CELL_TYPES {}", t + b)?;
+        for _ in 0..t {
             writeln!(w, "{VTK_TETRA}")?;
         }
-        writeln!(w, "CELL_DATA {}", mesh.n_tets())?;
+        for _ in 0..b {
+            writeln!(w, "{VTK_TRIANGLE}")?;
+        }
+        writeln!(w, "CELL_DATA {}", t + b)?;
         writeln!(w, "SCALARS min_dihedral_deg double 1")?;
         writeln!(w, "LOOKUP_TABLE default")?;
-        for t in 0..mesh.n_tets() {
-            let a = dihedral_angles(mesh.corners(t))
+        for q in 0..t {
+            let a = dihedral_angles(mesh.corners(q))
                 .into_iter()
                 .fold(f64::INFINITY, f64::min);
             writeln!(w, "{:.4}", a.to_degrees())?;
         }
+        for _ in 0..b {
+            writeln!(w, "0")?;
+        }
         // Signed, so that an inverted element shows (negative) where the angles cannot.
         writeln!(w, "SCALARS signed_volume double 1")?;
         writeln!(w, "LOOKUP_TABLE default")?;
-        for t in 0..mesh.n_tets() {
-            writeln!(w, "{:e}", mesh.tet_volume(t) * s * s * s)?;
+        for q in 0..t {
+            writeln!(w, "{:e}", mesh.tet_volume(q) * s * s * s)?;
+        }
+        for _ in 0..b {
+            writeln!(w, "0")?;
+        }
+        if let Some(g) = groups {
+            writeln!(w, "SCALARS link int 1")?;
+            writeln!(w, "LOOKUP_TABLE default")?;
+            for id in g.tet_group.iter().chain(boundary.iter().map(|x| &x.1)) {
+                writeln!(w, "{id}")?;
+            }
+            writeln!(w, "SCALARS boundary int 1")?;
+            writeln!(w, "LOOKUP_TABLE default")?;
+            for k in 0..t + b {
+                writeln!(w, "{}", u8::from(k >= t))?;
+            }
         }
         Ok(())
     })
@@ -67,8 +127,8 @@ pub fn read_vtk(path: &Path, units: Units) -> Result<TetMesh> {
 }
 
 /// Parse legacy VTK bytes (see [`read_vtk`]); `label` names the source in errors. Only ASCII
-/// files whose cells are all `VTK_TETRA` are accepted; data sections after `CELL_TYPES` are
-/// ignored. Counts are checked against the file length before anything is allocated.
+/// files whose cells are `VTK_TETRA` or `VTK_TRIANGLE` are accepted; the triangles (boundary
+/// faces written with groups) are skipped, and data sections after `CELL_TYPES` are ignored. Counts are checked against the file length before anything is allocated.
 pub(crate) fn read_vtk_bytes(bytes: &[u8], units: Units, label: &Path) -> Result<TetMesh> {
     let err = |msg: String| Error::input(label, msg);
     let text = std::str::from_utf8(bytes).map_err(|e| {
@@ -169,21 +229,25 @@ pub(crate) fn read_vtk_bytes(bytes: &[u8], units: Units, label: &Path) -> Result
     }
     let n_cells = count(next("the cell count")?, "CELLS")?;
     let size = count(next("the cell list size")?, "CELLS size")?;
-    if size != 5 * n_cells {
-        return Err(err(format!(
-            "CELLS: list size {size} is not 5 x {n_cells}: only tetrahedra (4 points) are supported"
-        )));
-    }
+    // Tetrahedra are kept; triangles (the boundary faces this crate writes with groups) are
+    // read and skipped.
     let mut tets = Vec::with_capacity(n_cells);
+    let mut is_tet = Vec::with_capacity(n_cells);
+    let mut listed = 0usize;
     for c in 0..n_cells {
         let k = next("a cell's point count")?;
-        if k != "4" {
-            return Err(err(format!(
-                "cell {c} has '{k}' points: only tetrahedra (4) are supported"
-            )));
-        }
+        let k = match k {
+            "4" => 4,
+            "3" => 3,
+            _ => {
+                return Err(err(format!(
+                    "cell {c} has '{k}' points: only tetrahedra (4) and triangles (3) are supported"
+                )))
+            }
+        };
+        listed += k + 1;
         let mut t = [0usize; 4];
-        for x in t.iter_mut() {
+        for x in t.iter_mut().take(k) {
             let s = next("a cell's point index")?;
             *x = s
                 .parse::<usize>()
@@ -195,7 +259,15 @@ pub(crate) fn read_vtk_bytes(bytes: &[u8], units: Units, label: &Path) -> Result
                     ))
                 })?;
         }
-        tets.push(t);
+        is_tet.push(k == 4);
+        if k == 4 {
+            tets.push(t);
+        }
+    }
+    if listed != size {
+        return Err(err(format!(
+            "CELLS: list size {size}, but the cells listed take {listed} numbers"
+        )));
     }
     let kw = next("CELL_TYPES")?;
     if kw != "CELL_TYPES" {
@@ -207,11 +279,13 @@ pub(crate) fn read_vtk_bytes(bytes: &[u8], units: Units, label: &Path) -> Result
             "CELL_TYPES: {n_types} types for {n_cells} cells"
         )));
     }
-    for c in 0..n_types {
+    for (c, &tet) in is_tet.iter().enumerate() {
         let s = next("a cell type")?;
-        if s != "10" {
+        let want = if tet { "10" } else { "5" };
+        if s != want {
             return Err(err(format!(
-                "cell {c} has type '{s}': only VTK_TETRA (10) is supported"
+                "cell {c} has type '{s}' for {} points: only VTK_TETRA (10) and VTK_TRIANGLE (5) are supported",
+                if tet { 4 } else { 3 }
             )));
         }
     }
@@ -219,7 +293,7 @@ pub(crate) fn read_vtk_bytes(bytes: &[u8], units: Units, label: &Path) -> Result
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
     use proptest::prelude::*;
 
@@ -240,7 +314,7 @@ mod tests {
     fn valid() -> Vec<u8> {
         let dir = tempfile::tempdir().unwrap();
         let p = dir.path().join("m.vtk");
-        write_vtk(&p, &sample(), Units::Millimetres).unwrap();
+        write_vtk(&p, &sample(), Units::Millimetres, None).unwrap();
         std::fs::read(p).unwrap()
     }
 
@@ -254,7 +328,7 @@ mod tests {
         let mut m = sample();
         m.tets[0].swap(1, 2);
         let field = |units| {
-            write_vtk(&p, &m, units).unwrap();
+            write_vtk(&p, &m, units, None).unwrap();
             let text = std::fs::read_to_string(&p).unwrap();
             let at = text
                 .find("SCALARS signed_volume double 1\nLOOKUP_TABLE default\n")
@@ -278,9 +352,9 @@ mod tests {
         let dir = tempfile::tempdir().unwrap();
         let p = dir.path().join("m.vtk");
         let m = sample();
-        write_vtk(&p, &m, Units::Millimetres).unwrap();
+        write_vtk(&p, &m, Units::Millimetres, None).unwrap();
         assert_eq!(read_vtk(&p, Units::Millimetres).unwrap(), m);
-        write_vtk(&p, &m, Units::Metres).unwrap();
+        write_vtk(&p, &m, Units::Metres, None).unwrap();
         let back = read_vtk(&p, Units::Metres).unwrap();
         assert_eq!(back.tets, m.tets);
         for (a, b) in back.nodes.iter().zip(&m.nodes) {
@@ -288,6 +362,97 @@ mod tests {
         }
         let text = std::fs::read_to_string(&p).unwrap();
         assert!(text.contains("CELL_TYPES 2\n10\n10\n"));
+    }
+
+    /// A 10 mm cube cut into the six Kuhn tetrahedra, in two groups (alternating).
+    pub(crate) fn grouped_cube() -> (TetMesh, TetGroups) {
+        let corner = |c: u8| {
+            Point::new(
+                f64::from(c & 1) * 10.0,
+                f64::from((c >> 1) & 1) * 10.0,
+                f64::from((c >> 2) & 1) * 10.0,
+            )
+        };
+        let m = TetMesh::new(
+            (0..8).map(corner).collect(),
+            crate::geometry::marching_tetrahedra::kuhn_tetrahedra()
+                .map(|t| t.map(usize::from))
+                .to_vec(),
+        )
+        .unwrap();
+        let g = TetGroups::new(&m, vec!["A".into(), "B".into()], vec![0, 1, 0, 1, 0, 1]).unwrap();
+        (m, g)
+    }
+
+    /// With groups: the boundary triangles follow the tetrahedra (each square face of the
+    /// cube in two, 12), closed (each edge in two of them) and outward (their divergence
+    /// volume is the cube's); the link and boundary fields, read from the text by the format's
+    /// grammar, label them; and the reader gives back the same tetrahedral mesh.
+    #[test]
+    fn groups_add_boundary_triangles_and_fields() {
+        let (m, g) = grouped_cube();
+        assert_eq!(g.boundary.len(), 12);
+        let mut edges = std::collections::HashMap::new();
+        let mut vol = 0.0;
+        for (f, group) in &g.boundary {
+            assert!(*group < 2);
+            for k in 0..3 {
+                let (a, b) = (f[k], f[(k + 1) % 3]);
+                *edges.entry((a.min(b), a.max(b))).or_insert(0) += 1;
+            }
+            let [a, b, c] = f.map(|v| m.nodes[v].coords);
+            vol += a.dot(&b.cross(&c)) / 6.0;
+        }
+        assert!(edges.values().all(|&n| n == 2));
+        assert!((vol - 1000.0).abs() < 1e-9, "{vol}");
+
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("g.vtk");
+        write_vtk(&p, &m, Units::Millimetres, Some(&g)).unwrap();
+        assert_eq!(read_vtk(&p, Units::Millimetres).unwrap(), m);
+        let text = std::fs::read_to_string(&p).unwrap();
+        assert!(text.lines().nth(1).unwrap().ends_with("groups: 0 A 1 B"));
+        assert!(text.contains("CELLS 18 78\n"));
+        let field = |name: &str| -> Vec<f64> {
+            let at = text.find(&format!("SCALARS {name} ")).unwrap();
+            text[at..]
+                .lines()
+                .skip(2)
+                .take(18)
+                .map(|l| l.parse().unwrap())
+                .collect()
+        };
+        let types: Vec<&str> = text[text.find("CELL_TYPES 18\n").unwrap()..]
+            .lines()
+            .skip(1)
+            .take(18)
+            .collect();
+        assert_eq!(types[..6], ["10"; 6]);
+        assert_eq!(types[6..], ["5"; 12]);
+        let link = field("link");
+        let want: Vec<f64> = g
+            .tet_group
+            .iter()
+            .chain(g.boundary.iter().map(|b| &b.1))
+            .map(|&x| f64::from(x))
+            .collect();
+        assert_eq!(link, want);
+        let boundary = field("boundary");
+        assert_eq!(boundary.iter().sum::<f64>(), 12.0);
+        assert!(boundary[..6].iter().all(|&x| x == 0.0));
+        let volume = field("signed_volume");
+        assert!(volume[..6].iter().all(|&v| (v - 1000.0 / 6.0).abs() < 1e-9));
+        assert!(volume[6..].iter().all(|&v| v == 0.0));
+
+        // Groups that do not fit the mesh are refused before anything is written.
+        let mut bad = g.clone();
+        bad.tet_group.pop();
+        let q = dir.path().join("bad.vtk");
+        let e = write_vtk(&q, &m, Units::Millimetres, Some(&bad))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("5 group ids for 6 tetrahedra"), "{e}");
+        assert!(!q.exists());
     }
 
     #[test]

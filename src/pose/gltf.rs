@@ -96,6 +96,8 @@ pub fn skinned_scene(
                 joints,
                 weights: weights.clone(),
             }),
+            attributes: Vec::new(),
+            morph_targets: Vec::new(),
         }],
         animations: Vec::new(),
     }
@@ -178,12 +180,19 @@ pub fn animated_scene(
     let time = |f: usize| f as f64 / rate;
     let mut channels = hand_channels(sk, &frames, poses, time);
     if let Some(p) = part {
+        // A CAD part: smooth across its rounds, sharp at its edges.
+        let split = crate::geometry::crease_normals(
+            p.mesh,
+            crate::geometry::crease_normals::DEFAULT_CREASE_DEG,
+        );
         scene.meshes.push(SceneMesh {
             name: p.name.to_string(),
-            mesh: p.mesh.clone(),
-            normals: Some(p.mesh.vertex_normals()),
+            mesh: split.mesh,
+            normals: Some(split.normals),
             colors: None,
             skin: None,
+            attributes: Vec::new(),
+            morph_targets: Vec::new(),
         });
         channels.extend(part_channels(1, &frames, p.poses, time));
     }
@@ -482,6 +491,16 @@ mod tests {
         )
         .unwrap();
         assert_eq!(back.meshes.len(), 2);
+        // The part is a tetrahedron, all edges sharp: three copies of each corner, each with
+        // its face's normal.
+        let p = &back.meshes[1];
+        assert_eq!(p.mesh.n_vertices(), 12);
+        let face_n = p.mesh.face_normals();
+        for (f, face) in p.mesh.faces.iter().enumerate() {
+            for &v in face {
+                assert!((p.normals.as_ref().unwrap()[v] - face_n[f]).norm() < 1e-6);
+            }
+        }
         assert_eq!(back.animations.len(), 1);
         let channels = &back.animations[0].channels;
         // A rotation per joint node, the forearm's translation, the part's two.

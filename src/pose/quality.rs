@@ -3,7 +3,7 @@
 
 use crate::anatomy::{Finger, Link};
 use crate::geometry::closest_point::{AabbTree, PseudoNormals};
-use crate::geometry::tet_mesh::tet_signed_volume;
+use crate::geometry::tet_mesh::{tet_signed_volume, TetGroups};
 use crate::geometry::{Point, TriMesh};
 use crate::template::{dominant_links, LinkWeights};
 use std::collections::HashMap;
@@ -172,6 +172,21 @@ pub fn finger_penetration(
 pub fn tet_segments(tets: &[[usize; 4]], node_weights: &LinkWeights) -> Vec<usize> {
     tets.iter().map(|q| dominant_of(q, node_weights)).collect()
 }
+/// The finite-element groups of a tetrahedral mesh by link: one group per link of
+/// [`Link::ALL`] (named by [`Link::name`], e.g. `I_PROX`; the id is the index), each
+/// tetrahedron in its segment (`labels` from [`tet_segments`]) and each boundary face in its
+/// tetrahedron's.
+pub fn link_groups(
+    mesh: &crate::tet::TetMesh,
+    labels: &[usize],
+) -> crate::error::Result<TetGroups> {
+    TetGroups::new(
+        mesh,
+        Link::ALL.iter().map(|l| l.name().to_string()).collect(),
+        labels.iter().map(|&l| l as u32).collect(),
+    )
+}
+
 /// Where a tetrahedral mesh is inverted: per segment (`labels` from [`tet_segments`]), the
 /// count of elements whose signed volume is not positive, as (link, count), most first.
 pub fn inverted_by_link(

@@ -22,7 +22,7 @@ pub mod stuffing;
 pub mod transfer;
 pub mod untangle;
 
-pub use crate::geometry::tet_mesh::{Stats, TetMesh, TetQuality};
+pub use crate::geometry::tet_mesh::{Stats, TetGroups, TetMesh, TetQuality};
 pub use elastic::{ArapOptions, ElasticSolver, ElasticStats};
 pub use stuffing::{isosurface_stuffing, StuffingParams};
 pub use transfer::{bind_boundary, place_boundary, place_boundary_nodes, SurfaceBinding};

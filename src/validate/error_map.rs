@@ -277,9 +277,11 @@ pub fn error_map_glb(skin: &TriMesh, values: &[f64], top: f64) -> Result<Vec<u8>
         meshes: vec![SceneMesh {
             name: "error map".into(),
             mesh: skin.clone(),
-            normals: None,
+            normals: Some(skin.vertex_normals()),
             colors: Some(colours.into_iter().map(srgb_to_linear).collect()),
             skin: None,
+            attributes: Vec::new(),
+            morph_targets: Vec::new(),
         }],
         animations: Vec::new(),
     };

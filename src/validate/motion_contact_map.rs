@@ -321,21 +321,29 @@ pub fn contact_map_scene(map: &ContactMap) -> Scene {
         faces: map.part.faces.clone(),
     };
     let lin = |c: Vec<[u8; 3]>| Some(c.into_iter().map(srgb_to_linear).collect());
+    // The skin smooth, the CAD part split at its creases (its colours carried to the copies).
+    let part =
+        crate::geometry::crease_normals(&part, crate::geometry::crease_normals::DEFAULT_CREASE_DEG);
+    let part_colours = part.carry(&share_colours(&map.part_count, map.frames));
     Scene {
         meshes: vec![
             SceneMesh {
                 name: "hand".into(),
                 mesh: map.hand_posed.clone(),
-                normals: None,
+                normals: Some(map.hand_posed.vertex_normals()),
                 colors: lin(share_colours(&map.skin_count, map.frames)),
                 skin: None,
+                attributes: Vec::new(),
+                morph_targets: Vec::new(),
             },
             SceneMesh {
                 name: "part".into(),
-                mesh: part,
-                normals: None,
-                colors: lin(share_colours(&map.part_count, map.frames)),
+                mesh: part.mesh,
+                normals: Some(part.normals),
+                colors: lin(part_colours),
                 skin: None,
+                attributes: Vec::new(),
+                morph_targets: Vec::new(),
             },
         ],
         animations: Vec::new(),

@@ -29,17 +29,19 @@ pub struct ViewGlb {
     pub role: &'static str,
     /// The GLB's bytes (metres, as glTF).
     pub bytes: Vec<u8>,
-    /// A per-vertex float attribute of its meshes that a click reads out (`None`: the point
-    /// alone).
+    /// A per-vertex float attribute of its meshes that a click reads out (`None`: none).
     pub value: Option<ViewValue>,
 }
 
-/// A custom per-vertex float attribute of a GLB (glTF name with a leading underscore, e.g.
-/// `_ERROR_MM`), read out where the reader clicks.
+/// A custom glTF vertex attribute (FLOAT SCALAR, name with a leading `_`) that the page reads
+/// out at a clicked point, interpolated over the hit triangle.
 #[derive(Clone, Debug, Serialize)]
 pub struct ViewValue {
+    /// The attribute's glTF name, e.g. `_DISTANCE_MM`.
     pub attribute: String,
+    /// What it is, e.g. `distance to the part`.
     pub label: String,
+    /// Its unit, e.g. `mm`.
     pub unit: String,
 }
 

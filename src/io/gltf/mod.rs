@@ -43,6 +43,15 @@
 //! [`SceneMesh`], one shared PBR material, `u32` indices, `f32` attributes, and for a skin its
 //! joint nodes, `inverseBindMatrices`, `JOINTS_0` (`u16`) and `WEIGHTS_0` (`f32`).
 //!
+//! Custom vertex attributes ([`VertexAttribute`], names starting with `_`, FLOAT SCALAR) and
+//! morph targets ([`MorphTarget`]: a `POSITION` target with `min`/`max`, the mesh's default
+//! `weights`, names in `mesh.extras.targetNames`) are written per mesh. The reader returns the
+//! FLOAT SCALAR custom attributes that every triangle primitive of a mesh has (others, such as
+//! vector or integer ones, are skipped), and the morph targets' `POSITION` displacements (zero
+//! where a primitive's target has none; a target's normals and tangents are not read), default
+//! weights (0 when the mesh has none) and names (`target N` without `targetNames`). An unskinned
+//! mesh's displacements are turned by its node's world transform, like its normals' directions.
+//!
 //! # Animations (spec 3.11 "Animations")
 //! A [`Scene`] may carry [`Animation`]s: channels that move the `translation` or `rotation` of a
 //! mesh node or a skin joint ([`AnimationTarget`]) through keyframes interpolated LINEAR. Each
@@ -108,6 +117,36 @@ pub struct SceneMesh {
     pub colors: Option<Vec<[f32; 4]>>,
     /// The node's skin with this mesh's weights.
     pub skin: Option<Skin>,
+    /// Application-specific per-vertex scalars (glTF 2.0 spec 3.7.2.1: custom attribute names
+    /// start with `_`), e.g. `_DISTANCE_MM`; a viewer can colour or probe the mesh by them.
+    pub attributes: Vec<VertexAttribute>,
+    /// Morph targets (spec 3.7.2.2): per-vertex displacements a viewer blends by weight.
+    pub morph_targets: Vec<MorphTarget>,
+}
+
+/// A custom per-vertex attribute: one `f32` per vertex, stored as a FLOAT SCALAR accessor.
+/// Values are stored as given (no unit conversion): the name should say the unit, as
+/// `_DISTANCE_MM` does, because glTF has no place for it.
+#[derive(Clone, Debug, PartialEq)]
+pub struct VertexAttribute {
+    /// The attribute semantic, starting with `_` (the writer refuses any other name, since
+    /// the spec reserves the rest for its own semantics).
+    pub name: String,
+    /// One value per vertex.
+    pub values: Vec<f32>,
+}
+
+/// One morph target of a mesh: a displacement per vertex (the spec's `POSITION` target)
+/// and its default weight (the mesh's `weights`); the name goes to `mesh.extras.targetNames`,
+/// the convention three.js and Blender read, since glTF itself names no target.
+#[derive(Clone, Debug, PartialEq)]
+pub struct MorphTarget {
+    /// The target's name.
+    pub name: String,
+    /// One displacement per vertex, mm (converted to the file's unit like positions).
+    pub displacements: Vec<Vec3>,
+    /// The default weight: the shown shape is `position + Σ weight * displacement`.
+    pub weight: f64,
 }
 
 /// The mesh instances of a glTF scene.
@@ -231,7 +270,10 @@ pub fn write_glb(path: &Path, scene: &Scene, units: Units) -> Result<()> {
 /// Per [`SceneMesh`]: a root node without transform (the spec requires that of skinned mesh
 /// nodes), `POSITION` with `min`/`max`, `NORMAL` if given (renormalised; a zero normal is
 /// replaced by the mesh's angle-weighted vertex normal, else +Z, since the spec requires unit
-/// normals), `COLOR_0` if given (`f32` RGBA clamped to [0, 1]), `u32` indices. A skin adds a
+/// normals), `COLOR_0` if given (`f32` RGBA clamped to [0, 1]), each custom attribute as a
+/// FLOAT SCALAR accessor, morph targets as the primitive's `targets` (a `POSITION` accessor
+/// each, with `min`/`max`) with the mesh's `weights` and `extras.targetNames`, `u32` indices.
+/// A skin adds a
 /// node per joint, nested by [`SkinJoint::parent`] with `local` as its transform (written as TRS
 /// when the matrix decomposes, else as a matrix); a root joint whose `world` differs from its
 /// `local` gets a parent node holding `world * local^-1`, so both read back unchanged. Weights
@@ -240,7 +282,8 @@ pub fn write_glb(path: &Path, scene: &Scene, units: Units) -> Result<()> {
 /// Fails ([`Error::Invalid`], naming the mesh and item) on an empty mesh, attribute or weight
 /// lists whose length is not the vertex count, a joint index or parent out of range, a cycle
 /// of parents, a vertex of a skinned mesh without weight, more than 65536 joints, a non-finite
-/// value, or a joint whose `world` is not its parent's `world * local`.
+/// value, a joint whose `world` is not its parent's `world * local`, or a custom attribute
+/// whose name does not start with `_` (or is given twice).
 pub fn glb_bytes(scene: &Scene, units: Units) -> Result<Vec<u8>> {
     write::glb_bytes(scene, units)
 }

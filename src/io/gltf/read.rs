@@ -2,7 +2,10 @@
 //! checked against the bytes present before use (see the parent module for the conventions).
 
 use super::container::{data_uri, is_glb, percent_decode, split_glb, truncate};
-use super::{Animation, AnimationTarget, Channel, Keyframes, Scene, SceneMesh, Skin, SkinJoint};
+use super::{
+    Animation, AnimationTarget, Channel, Keyframes, MorphTarget, Scene, SceneMesh, Skin, SkinJoint,
+    VertexAttribute,
+};
 use crate::error::{Error, Result};
 use crate::geometry::{Point, TriMesh, Vec3};
 use crate::io::Units;
@@ -856,6 +859,10 @@ impl Doc<'_> {
         let mut any_colors = false;
         let mut weights: Vec<Vec<(usize, f64)>> = Vec::new();
         let mut n_tri_prims = 0;
+        // Custom attributes every triangle primitive so far has (None before the first).
+        let mut custom: Option<Vec<(String, Vec<f32>)>> = None;
+        // Morph target displacements, file units (None before the first triangle primitive).
+        let mut targets: Option<Vec<Vec<Vec3>>> = None;
 
         for (pi, prim) in mesh.primitives.iter().enumerate() {
             let pl = format!("primitive {pi} of {ml}");
@@ -967,6 +974,67 @@ impl Doc<'_> {
                 None => {}
             }
 
+            let mut mine = Vec::new();
+            for (sem, a) in &prim.attributes {
+                let Checked::Valid(Semantic::Extras(name)) = sem else {
+                    continue;
+                };
+                let a = a.value();
+                let float_scalar = self.root.accessors.get(a).is_some_and(|acc| {
+                    matches!(acc.type_, Checked::Valid(Type::Scalar))
+                        && matches!(acc.component_type, Checked::Valid(c) if c.0 == ComponentType::F32)
+                });
+                if !float_scalar {
+                    continue;
+                }
+                let what = format!("_{name} of {pl}");
+                let d = self.typed(a, &what, &[Type::Scalar], Some(nv))?;
+                mine.push((
+                    format!("_{name}"),
+                    d.values.iter().map(|&x| x as f32).collect::<Vec<_>>(),
+                ));
+            }
+            custom = Some(match custom.take() {
+                None => mine,
+                Some(before) => before
+                    .into_iter()
+                    .filter_map(|(name, mut values)| {
+                        let (_, more) = mine.iter().find(|(n, _)| *n == name)?;
+                        values.extend_from_slice(more);
+                        Some((name, values))
+                    })
+                    .collect(),
+            });
+
+            let prim_targets = prim.targets.as_deref().unwrap_or(&[]);
+            let all = targets.get_or_insert_with(|| vec![Vec::new(); prim_targets.len()]);
+            if all.len() != prim_targets.len() {
+                return Err(self.err(format!(
+                    "{pl} has {} morph targets, but an earlier primitive of {ml} has {}; glTF requires the same number on every primitive of a mesh",
+                    prim_targets.len(),
+                    all.len()
+                )));
+            }
+            for (k, (t, out)) in prim_targets.iter().zip(all.iter_mut()).enumerate() {
+                match &t.positions {
+                    Some(a) => {
+                        let what = format!("POSITION of morph target {k} of {pl}");
+                        let d = self.typed(a.value(), &what, &[Type::Vec3], Some(nv))?;
+                        if !d.values.iter().all(|x| x.is_finite()) {
+                            return Err(self.err(format!(
+                                "accessor {a} ({what}) has a non-finite displacement"
+                            )));
+                        }
+                        out.extend(
+                            d.values
+                                .chunks_exact(3)
+                                .map(|c| Vec3::new(c[0], c[1], c[2])),
+                        );
+                    }
+                    None => out.resize(offset + nv, Vec3::zeros()),
+                }
+            }
+
             if let Some((s, joints)) = skin {
                 let mut w = vec![Vec::new(); nv];
                 let mut set = 0u32;
@@ -1010,6 +1078,41 @@ impl Doc<'_> {
                 f.swap(1, 2);
             }
         }
+        let linear: Matrix3<f64> = if skinned {
+            Matrix3::identity()
+        } else {
+            node_world.fixed_view::<3, 3>(0, 0).into_owned()
+        };
+        let targets = targets.unwrap_or_default();
+        let names: Vec<String> = mesh
+            .extras
+            .as_ref()
+            .and_then(|raw| serde_json::from_str::<serde_json::Value>(raw.get()).ok())
+            .and_then(|v| {
+                v.get("targetNames")?
+                    .as_array()?
+                    .iter()
+                    .map(|n| n.as_str().map(str::to_string))
+                    .collect::<Option<Vec<_>>>()
+            })
+            .filter(|n| n.len() == targets.len())
+            .unwrap_or_else(|| (0..targets.len()).map(|k| format!("target {k}")).collect());
+        let default_weights = mesh.weights.as_deref().unwrap_or(&[]);
+        let morph_targets = targets
+            .into_iter()
+            .zip(names)
+            .enumerate()
+            .map(|(k, (d, name))| MorphTarget {
+                name,
+                displacements: d.into_iter().map(|x| linear * x * self.mm).collect(),
+                weight: default_weights.get(k).map_or(0.0, |&w| f64::from(w)),
+            })
+            .collect();
+        let attributes = custom
+            .unwrap_or_default()
+            .into_iter()
+            .map(|(name, values)| VertexAttribute { name, values })
+            .collect();
         let name = node
             .name
             .clone()
@@ -1029,6 +1132,8 @@ impl Doc<'_> {
             normals,
             colors: any_colors.then_some(colors),
             skin,
+            attributes,
+            morph_targets,
         }))
     }
 

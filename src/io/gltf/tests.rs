@@ -264,6 +264,8 @@ fn test_scene(root_parent: Matrix4<f64>) -> Scene {
                 normals,
                 colors: Some(colors),
                 skin: Some(skin),
+                attributes: Vec::new(),
+                morph_targets: Vec::new(),
             },
             SceneMesh {
                 name: "plain tube".into(),
@@ -271,6 +273,8 @@ fn test_scene(root_parent: Matrix4<f64>) -> Scene {
                 normals: None,
                 colors: None,
                 skin: None,
+                attributes: Vec::new(),
+                morph_targets: Vec::new(),
             },
         ],
         animations: Vec::new(),
@@ -295,6 +299,18 @@ fn assert_same_scene(a: &Scene, b: &Scene) {
             }
         }
         assert_eq!(x.colors, y.colors, "colours are f32 in and out");
+        let mut xa = x.attributes.clone();
+        xa.sort_by(|a, b| a.name.cmp(&b.name));
+        assert_eq!(xa, y.attributes, "custom attributes are f32 in and out");
+        assert_eq!(x.morph_targets.len(), y.morph_targets.len());
+        for (s, t) in x.morph_targets.iter().zip(&y.morph_targets) {
+            assert_eq!(s.name, t.name);
+            assert!((s.weight - t.weight).abs() < 1e-6);
+            assert_eq!(s.displacements.len(), t.displacements.len());
+            for (p, q) in s.displacements.iter().zip(&t.displacements) {
+                assert!((p - q).amax() < 1e-4, "{p} vs {q}");
+            }
+        }
         assert_eq!(x.skin.is_some(), y.skin.is_some());
         if let (Some(s), Some(t)) = (&x.skin, &y.skin) {
             assert_eq!(s.joints.len(), t.joints.len());
@@ -366,6 +382,100 @@ fn round_trip_skinned_scene() {
     let path = dir.path().join("scene.glb");
     write_glb(&path, &scene, Units::Metres).unwrap();
     assert_same_scene(&scene, &read_gltf(&path, Units::Metres).unwrap());
+}
+
+/// `scene` with a custom attribute on both meshes and two morph targets on the skinned one.
+fn with_attributes_and_targets(mut scene: Scene) -> Scene {
+    for sm in &mut scene.meshes {
+        let c = crate::geometry::Point::origin();
+        sm.attributes = vec![
+            VertexAttribute {
+                name: "_DISTANCE_MM".into(),
+                values: sm
+                    .mesh
+                    .vertices
+                    .iter()
+                    .map(|p| (p - c).norm() as f32)
+                    .collect(),
+            },
+            VertexAttribute {
+                name: "_AREA".into(),
+                values: (0..sm.mesh.n_vertices()).map(|i| i as f32 * 0.5).collect(),
+            },
+        ];
+    }
+    let sm = &mut scene.meshes[0];
+    sm.morph_targets = vec![
+        MorphTarget {
+            name: "swell".into(),
+            displacements: sm.mesh.vertex_normals().iter().map(|n| n * 2.0).collect(),
+            weight: 0.25,
+        },
+        MorphTarget {
+            name: "shift".into(),
+            displacements: vec![Vec3::new(0.0, 3.0, -1.5); sm.mesh.n_vertices()],
+            weight: 0.0,
+        },
+    ];
+    scene
+}
+
+#[test]
+fn round_trip_custom_attributes_and_morph_targets() {
+    let scene = with_attributes_and_targets(test_scene(Matrix4::identity()));
+    for units in [Units::Metres, Units::Millimetres] {
+        let bytes = glb_bytes(&scene, units).unwrap();
+        assert_same_scene(&scene, &read_gltf_slice(&bytes, units, &label()).unwrap());
+    }
+
+    // Read by the `gltf` crate, which knows nothing of ours: the target displacements in
+    // metres with their required min/max, the default weights and three.js' targetNames.
+    let bytes = glb_bytes(&scene, Units::Metres).unwrap();
+    let (doc, buffers, _) = gltf::import_slice(&bytes).unwrap();
+    let mesh = doc.meshes().next().unwrap();
+    assert_eq!(mesh.weights().unwrap(), &[0.25, 0.0]);
+    let extras: Value = serde_json::from_str(mesh.extras().as_ref().unwrap().get()).unwrap();
+    assert_eq!(extras["targetNames"], json!(["swell", "shift"]));
+    let prim = mesh.primitives().next().unwrap();
+    let reader = prim.reader(|b| Some(&buffers[b.index()]));
+    let targets: Vec<Vec<[f32; 3]>> = reader
+        .read_morph_targets()
+        .map(|(p, _, _)| p.unwrap().collect())
+        .collect();
+    assert_eq!(targets.len(), 2);
+    let shift = &scene.meshes[0].morph_targets[1].displacements[0];
+    for d in &targets[1] {
+        for k in 0..3 {
+            assert!((f64::from(d[k]) * 1000.0 - shift[k]).abs() < 1e-4);
+        }
+    }
+    let json = glb_json(&bytes);
+    let t0 = json["meshes"][0]["primitives"][0]["targets"][0]["POSITION"]
+        .as_u64()
+        .unwrap();
+    let acc = &json["accessors"][t0 as usize];
+    assert!(acc["min"].is_array() && acc["max"].is_array());
+    let custom = json["meshes"][1]["primitives"][0]["attributes"]["_DISTANCE_MM"]
+        .as_u64()
+        .unwrap();
+    let acc = &json["accessors"][custom as usize];
+    assert_eq!(
+        (acc["type"].as_str(), acc["componentType"].as_u64()),
+        (Some("SCALAR"), Some(5126))
+    );
+
+    // The spec reserves names without '_'; a wrong length is refused too.
+    let mut bad = scene.clone();
+    bad.meshes[1].attributes[0].name = "DISTANCE".into();
+    let e = glb_bytes(&bad, Units::Metres).unwrap_err().to_string();
+    assert!(
+        e.contains("'plain tube'") && e.contains("'DISTANCE'") && e.contains("'_'"),
+        "{e}"
+    );
+    let mut bad = scene.clone();
+    bad.meshes[0].morph_targets[1].displacements.pop();
+    let e = glb_bytes(&bad, Units::Metres).unwrap_err().to_string();
+    assert!(e.contains("morph target 1 ('shift')"), "{e}");
 }
 
 #[test]
@@ -829,6 +939,13 @@ fn export_validator_samples() {
     write_glb(&dir.join("skinned_held_root.glb"), &held, Units::Metres).unwrap();
     let hand = read_gltf(&asset("right.glb"), Units::Metres).unwrap();
     write_glb(&dir.join("generic_hand_right.glb"), &hand, Units::Metres).unwrap();
+    let extended = with_attributes_and_targets(test_scene(Matrix4::identity()));
+    write_glb(
+        &dir.join("attributes_morph_targets.glb"),
+        &extended,
+        Units::Metres,
+    )
+    .unwrap();
 }
 
 // ---- Hostile input -------------------------------------------------------------------------

@@ -118,15 +118,27 @@ pub(super) fn glb_bytes(scene: &Scene, units: Units) -> Result<Vec<u8>> {
             .push(sm.skin.as_ref().map(|s| (node_index + 1, s.joints.len())));
         let (attributes, indices) = write_mesh(&mut bin, sm, mm)?;
         let mut node = json!({ "name": sm.name, "mesh": meshes.len() });
-        meshes.push(json!({
-            "name": sm.name,
-            "primitives": [{
-                "attributes": attributes,
-                "indices": indices,
-                "material": 0,
-                "mode": TRIANGLES,
-            }],
-        }));
+        let mut primitive = json!({
+            "attributes": attributes,
+            "indices": indices,
+            "material": 0,
+            "mode": TRIANGLES,
+        });
+        let mut mesh = json!({ "name": sm.name });
+        if !sm.morph_targets.is_empty() {
+            let targets = write_morph_targets(&mut bin, sm, mm)?;
+            primitive["targets"] = Value::Array(targets);
+            mesh["weights"] = json!(sm
+                .morph_targets
+                .iter()
+                .map(|t| f64::from(t.weight as f32))
+                .collect::<Vec<_>>());
+            mesh["extras"] = json!({
+                "targetNames": sm.morph_targets.iter().map(|t| t.name.as_str()).collect::<Vec<_>>(),
+            });
+        }
+        mesh["primitives"] = json!([primitive]);
+        meshes.push(mesh);
         nodes.push(Value::Null);
         if let Some(skin) = &sm.skin {
             node["skin"] = json!(skins.len());
@@ -269,6 +281,31 @@ fn write_mesh(bin: &mut Bin, sm: &SceneMesh, mm: f64) -> Result<(Value, usize)> 
         attributes.insert("COLOR_0".into(), json!(a));
     }
 
+    for (k, attr) in sm.attributes.iter().enumerate() {
+        let an = &attr.name;
+        if !an.starts_with('_') || an.len() < 2 {
+            return Err(bad(format!(
+                "custom attribute {k} is named '{an}'; glTF requires application-specific attribute names to start with '_' (e.g. '_DISTANCE_MM')"
+            )));
+        }
+        if sm.attributes[..k].iter().any(|a| a.name == *an) || attributes.contains_key(an) {
+            return Err(bad(format!("custom attribute '{an}' is given twice")));
+        }
+        check_len(&format!("values of attribute '{an}'"), attr.values.len())?;
+        if let Some(v) = attr.values.iter().position(|x| !x.is_finite()) {
+            return Err(bad(format!("attribute '{an}' of vertex {v} is not finite")));
+        }
+        let a = bin.accessor(
+            &f32s(attr.values.iter().copied()),
+            FLOAT,
+            nv,
+            "SCALAR",
+            Some(ARRAY_BUFFER),
+            Map::new(),
+        );
+        attributes.insert(an.clone(), json!(a));
+    }
+
     let mut idx = Vec::with_capacity(mesh.faces.len() * 12);
     for (f, face) in mesh.faces.iter().enumerate() {
         for &v in face {
@@ -294,6 +331,48 @@ fn write_mesh(bin: &mut Bin, sm: &SceneMesh, mm: f64) -> Result<(Value, usize)> 
         attributes.insert("WEIGHTS_0".into(), json!(w));
     }
     Ok((Value::Object(attributes), indices))
+}
+
+/// The primitive's `targets` of `sm` (spec 3.7.2.2 "Morph Targets"): per target a `POSITION`
+/// accessor of displacements in the file's unit with the `min`/`max` the spec requires of it.
+fn write_morph_targets(bin: &mut Bin, sm: &SceneMesh, mm: f64) -> Result<Vec<Value>> {
+    let name = &sm.name;
+    let nv = sm.mesh.vertices.len();
+    let bad = |msg: String| Error::invalid(format!("scene mesh '{name}': {msg}"));
+    let mut out = Vec::with_capacity(sm.morph_targets.len());
+    for (k, t) in sm.morph_targets.iter().enumerate() {
+        let tl = format!("morph target {k} ('{}')", t.name);
+        if t.displacements.len() != nv {
+            return Err(bad(format!(
+                "{tl} has {} displacements for {nv} vertices",
+                t.displacements.len()
+            )));
+        }
+        if !(t.weight as f32).is_finite() {
+            return Err(bad(format!("{tl} has weight {}", t.weight)));
+        }
+        let mut d = Vec::with_capacity(nv * 3);
+        let (mut lo, mut hi) = ([f32::INFINITY; 3], [f32::NEG_INFINITY; 3]);
+        for (v, x) in t.displacements.iter().enumerate() {
+            let q = x.map(|c| (c / mm) as f32);
+            if !q.iter().all(|c| c.is_finite()) {
+                return Err(bad(format!(
+                    "{tl}: displacement of vertex {v} is not finite in f32"
+                )));
+            }
+            for c in 0..3 {
+                lo[c] = lo[c].min(q[c]);
+                hi[c] = hi[c].max(q[c]);
+            }
+            d.extend_from_slice(q.as_slice());
+        }
+        let mut extra = Map::new();
+        extra.insert("min".into(), json!(lo.map(f64::from)));
+        extra.insert("max".into(), json!(hi.map(f64::from)));
+        let a = bin.accessor(&f32s(d), FLOAT, nv, "VEC3", Some(ARRAY_BUFFER), extra);
+        out.push(json!({ "POSITION": a }));
+    }
+    Ok(out)
 }
 
 /// `JOINTS_0` (u16) and `WEIGHTS_0` (f32) of a skinned mesh (spec 3.7.3 "Skins"): per vertex the
