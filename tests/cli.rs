@@ -1036,6 +1036,20 @@ fn validate_page_holds_the_error_map(report: &Path) {
             "{row}"
         );
     }
+    // A click reads the distance out: the GLB carries it per vertex, the surface's own
+    // figures (the largest of the skin's distances to the reference).
+    assert_eq!(data["meshes"][0]["value"]["attribute"], "_ERROR_MM");
+    let scene =
+        ergohand::io::gltf::read_gltf_slice(&glbs[0], Units::Metres, Path::new("glb")).unwrap();
+    let errors = &scene.meshes[0].attributes[0];
+    assert_eq!(errors.name, "_ERROR_MM");
+    assert_eq!(errors.values.len(), scene.meshes[0].mesh.n_vertices());
+    let max = errors.values.iter().copied().fold(0.0f32, f32::max) as f64;
+    eprintln!("_ERROR_MM max {max} mm, metrics {}", s["max_mm"]);
+    assert!(
+        (max - s["max_mm"].as_f64().unwrap()).abs() < 1e-3,
+        "{max} {s}"
+    );
     let f = &data["frame"];
     let v = |k: &str| -> [f64; 3] { std::array::from_fn(|i| f[k][i].as_f64().unwrap()) };
     let (d, r, di) = (v("dorsal"), v("radial"), v("distal"));
@@ -1714,6 +1728,14 @@ fn grasp_a_population(model: &Path, tmp: &Path) {
     }
     let touched = outcomes[0]["contact_area_mm2"].as_f64().unwrap() > 0.0;
     assert_eq!(colours.len(), 1 + touched as usize, "{colours:?}");
+    // ... and a click reads the share: 0 or 100 % alike.
+    assert_eq!(data["meshes"][0]["value"]["attribute"], "_HAND_SHARE_PCT");
+    let part =
+        ergohand::io::gltf::read_gltf_slice(&glbs[0], Units::Metres, Path::new("glb")).unwrap();
+    let share = &part.meshes[0].attributes[0];
+    assert_eq!(share.name, "_HAND_SHARE_PCT");
+    assert!(share.values.iter().all(|&v| v == 0.0 || v == 100.0));
+    assert_eq!(share.values.iter().any(|&v| v == 100.0), touched);
     // One hand alone, through the single-hand command: the same grasp.
     let single = tmp.join("SINGLE");
     let o = ergohand(&[

@@ -401,7 +401,13 @@ pub fn grasp_population(
                         .collect(),
                 ),
                 skin: None,
-                attributes: Vec::new(),
+                attributes: vec![crate::io::gltf::VertexAttribute {
+                    name: crate::validate::pages::HAND_SHARE_ATTRIBUTE.into(),
+                    values: touched
+                        .iter()
+                        .map(|&c| (100.0 * c as f64 / summary.hands.max(1) as f64) as f32)
+                        .collect(),
+                }],
                 morph_targets: Vec::new(),
             }],
             animations: Vec::new(),

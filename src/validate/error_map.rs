@@ -266,11 +266,14 @@ pub(crate) fn srgb_to_linear(c: [u8; 3]) -> [f32; 4] {
     [f(c[0]), f(c[1]), f(c[2]), 1.0]
 }
 
+/// The custom vertex attribute of `error-map.glb` that holds each vertex's distance to the
+/// reference, mm (the view page reads it out where the reader clicks).
+pub const ERROR_ATTRIBUTE: &str = "_ERROR_MM";
+
 /// `skin` with its error colours (viridis, 0 to `top` mm) as GLB bytes: one mesh named
-/// `error map`, lengths in metres, colours in `COLOR_0`, through the same [`crate::io::gltf`]
-/// writer as every other GLB of the toolkit.
-// The distances themselves belong in a custom vertex attribute `_ERROR_MM` (the view page's
-// clicked-point readout, `pages::validate_page`) once `SceneMesh` carries attributes.
+/// `error map`, lengths in metres, colours in `COLOR_0`, the distances themselves in
+/// [`ERROR_ATTRIBUTE`], through the same [`crate::io::gltf`] writer as every other GLB of the
+/// toolkit.
 pub fn error_map_glb(skin: &TriMesh, values: &[f64], top: f64) -> Result<Vec<u8>> {
     let colours = map_values(values, 0.0, top);
     let scene = Scene {
@@ -280,7 +283,10 @@ pub fn error_map_glb(skin: &TriMesh, values: &[f64], top: f64) -> Result<Vec<u8>
             normals: Some(skin.vertex_normals()),
             colors: Some(colours.into_iter().map(srgb_to_linear).collect()),
             skin: None,
-            attributes: Vec::new(),
+            attributes: vec![crate::io::gltf::VertexAttribute {
+                name: ERROR_ATTRIBUTE.into(),
+                values: values.iter().map(|&v| v as f32).collect(),
+            }],
             morph_targets: Vec::new(),
         }],
         animations: Vec::new(),

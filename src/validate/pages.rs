@@ -4,7 +4,9 @@
 //! a page reads outputs, it measures nothing.
 
 use super::subject_validation::SubjectValidation;
-use super::view_page::{Gradient, Legend, Swatch, ViewFrame, ViewGlb, ViewPage, ViewTable};
+use super::view_page::{
+    Gradient, Legend, Swatch, ViewFrame, ViewGlb, ViewPage, ViewTable, ViewValue,
+};
 use crate::render::viridis;
 
 /// `%.2` of a length in mm.
@@ -140,11 +142,11 @@ pub fn validate_page(v: &SubjectValidation, glb: Vec<u8>, top: f64, frame: ViewF
             name: "skin error map".into(),
             role: "hand",
             bytes: glb,
-            // The readout of the error at a clicked point waits for the GLB writer's custom
-            // vertex attributes: once `error-map.glb` carries the distances as `_ERROR_MM`
-            // (see `error_map::error_map_glb`), name it here:
-            // Some(ViewValue { attribute: "_ERROR_MM".into(), label: "distance to the reference".into(), unit: "mm".into() }).
-            value: None,
+            value: Some(ViewValue {
+                attribute: super::error_map::ERROR_ATTRIBUTE.into(),
+                label: "distance to the reference".into(),
+                unit: "mm".into(),
+            }),
         }],
         part_nodes: Vec::new(),
         legend: Some(Legend {
@@ -322,6 +324,10 @@ pub fn track_contact_page(
     }
 }
 
+/// The custom vertex attribute of the population's `contact_frequency.glb`: the share of the
+/// hands touching each part vertex, %.
+pub const HAND_SHARE_ATTRIBUTE: &str = "_HAND_SHARE_PCT";
+
 /// The colour of a part vertex touched by `count` of `hands` hands: viridis of the share,
 /// [`super::motion_contact_map::NEVER`] grey for none (as the tracked trial's map).
 pub fn hand_share_colours(counts: &[u32], hands: usize) -> Vec<[u8; 3]> {
@@ -349,10 +355,11 @@ pub fn population_page(
             name: "part: share of hands touching".into(),
             role: "scene",
             bytes: glb,
-            // The share at a clicked point waits for the GLB writer's custom vertex
-            // attributes: once the part carries it as `_HAND_SHARE_PCT`, name it here:
-            // Some(ViewValue { attribute: "_HAND_SHARE_PCT".into(), label: "share of hands touching".into(), unit: "%".into() }).
-            value: None,
+            value: Some(ViewValue {
+                attribute: HAND_SHARE_ATTRIBUTE.into(),
+                label: "share of hands touching".into(),
+                unit: "%".into(),
+            }),
         }],
         part_nodes: Vec::new(),
         legend: Some(Legend {
