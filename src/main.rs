@@ -8,6 +8,15 @@ use ergohand::synth::{Body, Posture, Preset};
 use std::path::PathBuf;
 use std::process::ExitCode;
 
+/// `--obj-units`: millimetres or metres only (the toolkit's unit and glTF's/Blender's).
+fn parse_obj_units(s: &str) -> Result<ergohand::io::Units, String> {
+    match s {
+        "mm" => Ok(ergohand::io::Units::Millimetres),
+        "m" => Ok(ergohand::io::Units::Metres),
+        other => Err(format!("'{other}': expected mm or m")),
+    }
+}
+
 #[derive(Parser)]
 #[command(
     name = "ergohand",
@@ -173,6 +182,10 @@ enum Command {
         /// each finger segment's volume (a skinned .glb is never corrected).
         #[arg(long)]
         plain_skinning: bool,
+        /// Length unit of an .obj output, stated in its header: mm (the toolkit's unit) or m
+        /// (Blender's OBJ importer takes lengths as metres: a mm hand is ~200 m wide there).
+        #[arg(long, value_parser = parse_obj_units, default_value = "mm", value_name = "mm|m")]
+        obj_units: ergohand::io::Units,
     },
     /// Grasp and contact checks on a CAD part.
     Grasp {
@@ -327,6 +340,7 @@ fn main() -> ExitCode {
             out,
             keep_angles,
             plain_skinning,
+            obj_units,
         } => cli::pose_with(
             &model,
             &pose.to_string_lossy(),
@@ -334,6 +348,7 @@ fn main() -> ExitCode {
             &cli::PoseOptions {
                 resolve_contacts: !keep_angles,
                 preserve_volume: !plain_skinning,
+                obj_units,
             },
         )
         .map(|_| ()),

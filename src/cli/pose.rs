@@ -35,6 +35,9 @@ pub struct PoseOptions {
     /// ([`crate::pose::volume_correction`]); off: dual-quaternion skinning alone. A GLB is skinned by its
     /// viewer and never corrected.
     pub preserve_volume: bool,
+    /// The length unit of an `.obj` output (its header says it): millimetres by default, as
+    /// every file of the toolkit; metres for viewers that take OBJ lengths as metres (Blender).
+    pub obj_units: Units,
 }
 
 impl Default for PoseOptions {
@@ -42,6 +45,7 @@ impl Default for PoseOptions {
         PoseOptions {
             resolve_contacts: true,
             preserve_volume: true,
+            obj_units: Units::Millimetres,
         }
     }
 }
@@ -286,7 +290,7 @@ pub(crate) fn pose_job(
                 ),
                 None => (hand.posed_skin(&pose, method), "dual-quaternion skinning"),
             };
-            write_obj(out_file, &posed, Units::Millimetres, None)?;
+            write_obj(out_file, &posed, opts.obj_units, None)?;
             Shown {
                 skin: posed.vertices,
                 how,
@@ -545,6 +549,27 @@ mod tests {
         assert_eq!(posed.faces, dqs.faces);
         for (a, b) in posed.vertices.iter().zip(&dqs.vertices) {
             assert!((a - b).norm() < 1e-3, "OBJ precision");
+        }
+        // In metres for Blender: the header says so, the numbers are a thousandth, and the
+        // crate's reader takes the header's word over the unit it is told.
+        let metres = dir.path().join("p_m.obj");
+        let in_m = PoseOptions {
+            obj_units: Units::Metres,
+            ..PoseOptions::default()
+        };
+        pose_with(dir.path(), pose_file.to_str().unwrap(), &metres, &in_m).unwrap();
+        let text = std::fs::read_to_string(&metres).unwrap();
+        assert!(text.lines().nth(1).unwrap().starts_with("# units: m "));
+        let back = crate::io::obj::read_obj(&metres, Units::Millimetres).unwrap();
+        let raw = crate::io::obj::read_obj_bytes(
+            text.replacen("# units: m", "# units unknown", 1).as_bytes(),
+            Units::Millimetres,
+            &metres,
+        )
+        .unwrap();
+        for ((a, b), r) in back.vertices.iter().zip(&posed.vertices).zip(&raw.vertices) {
+            assert!((a - b).norm() < 1e-6);
+            assert!((r.coords * 1000.0 - b.coords).norm() < 1e-6);
         }
         let e = pose(dir.path(), "fist", &dir.path().join("x.stl"))
             .unwrap_err()

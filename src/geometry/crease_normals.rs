@@ -65,14 +65,11 @@ pub fn crease_normals(mesh: &TriMesh, crease_deg: f64) -> CreaseSplit {
         }
         x
     }
-    let mut edges: HashMap<(usize, usize), Vec<(usize, usize, usize)>> = HashMap::new();
+    let mut edges: HashMap<(usize, usize), Vec<usize>> = HashMap::new();
     for (f, face) in mesh.faces.iter().enumerate() {
         for k in 0..3 {
             let (a, b) = (face[k], face[(k + 1) % 3]);
-            edges
-                .entry((a.min(b), a.max(b)))
-                .or_default()
-                .push((f, k, (k + 1) % 3));
+            edges.entry((a.min(b), a.max(b))).or_default().push(f);
         }
     }
     let corner_of = |f: usize, v: usize| -> usize {
@@ -88,7 +85,7 @@ pub fn crease_normals(mesh: &TriMesh, crease_deg: f64) -> CreaseSplit {
         if crease_deg < 0.0 || list.len() != 2 {
             continue;
         }
-        let (f, g) = (list[0].0, list[1].0);
+        let (f, g) = (list[0], list[1]);
         let smooth = match (face_n[f], face_n[g]) {
             (Some(n), Some(m)) => n.dot(&m) >= cos_crease || crease_deg >= 180.0,
             _ => true,

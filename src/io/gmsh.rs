@@ -65,54 +65,55 @@ pub fn write_msh(
     let (n, t) = (mesh.n_nodes(), mesh.n_tets());
     // Per entity: (tag, bounding box, physical tag, element indices).
     type Entity = (usize, [f64; 6], Option<usize>, Vec<usize>);
-    let (volumes, surfaces, names): (Vec<Entity>, Vec<Entity>, Vec<(u8, usize, String)>) =
-        match groups {
-            None => (
-                vec![(1, bbox(mesh.nodes.iter(), s), None, (0..t).collect())],
-                Vec::new(),
-                Vec::new(),
-            ),
-            Some(g) => {
-                let ng = g.names.len();
-                let mut by_tets = vec![Vec::new(); ng];
-                for (e, &id) in g.tet_group.iter().enumerate() {
-                    by_tets[id as usize].push(e);
-                }
-                let mut by_faces = vec![Vec::new(); ng];
-                for (k, (_, id)) in g.boundary.iter().enumerate() {
-                    by_faces[*id as usize].push(k);
-                }
-                let mut names = Vec::new();
-                let mut vols = Vec::new();
-                let mut surfs = Vec::new();
-                for (id, tets) in by_tets.into_iter().enumerate() {
-                    if tets.is_empty() {
-                        continue;
-                    }
-                    let b = bbox(
-                        tets.iter()
-                            .flat_map(|&e| mesh.tets[e].iter().map(|&v| &mesh.nodes[v])),
-                        s,
-                    );
-                    names.push((3, id + 1, g.names[id].clone()));
-                    vols.push((id + 1, b, Some(id + 1), tets));
-                }
-                for (id, faces) in by_faces.into_iter().enumerate() {
-                    if faces.is_empty() {
-                        continue;
-                    }
-                    let b = bbox(
-                        faces
-                            .iter()
-                            .flat_map(|&k| g.boundary[k].0.iter().map(|&v| &mesh.nodes[v])),
-                        s,
-                    );
-                    names.push((2, ng + id + 1, format!("skin {}", g.names[id])));
-                    surfs.push((id + 1, b, Some(ng + id + 1), faces));
-                }
-                (vols, surfs, names)
+    // Per physical group: (dimension, tag, name).
+    type Named = (u8, usize, String);
+    let (volumes, surfaces, names): (Vec<Entity>, Vec<Entity>, Vec<Named>) = match groups {
+        None => (
+            vec![(1, bbox(mesh.nodes.iter(), s), None, (0..t).collect())],
+            Vec::new(),
+            Vec::new(),
+        ),
+        Some(g) => {
+            let ng = g.names.len();
+            let mut by_tets = vec![Vec::new(); ng];
+            for (e, &id) in g.tet_group.iter().enumerate() {
+                by_tets[id as usize].push(e);
             }
-        };
+            let mut by_faces = vec![Vec::new(); ng];
+            for (k, (_, id)) in g.boundary.iter().enumerate() {
+                by_faces[*id as usize].push(k);
+            }
+            let mut names = Vec::new();
+            let mut vols = Vec::new();
+            let mut surfs = Vec::new();
+            for (id, tets) in by_tets.into_iter().enumerate() {
+                if tets.is_empty() {
+                    continue;
+                }
+                let b = bbox(
+                    tets.iter()
+                        .flat_map(|&e| mesh.tets[e].iter().map(|&v| &mesh.nodes[v])),
+                    s,
+                );
+                names.push((3, id + 1, g.names[id].clone()));
+                vols.push((id + 1, b, Some(id + 1), tets));
+            }
+            for (id, faces) in by_faces.into_iter().enumerate() {
+                if faces.is_empty() {
+                    continue;
+                }
+                let b = bbox(
+                    faces
+                        .iter()
+                        .flat_map(|&k| g.boundary[k].0.iter().map(|&v| &mesh.nodes[v])),
+                    s,
+                );
+                names.push((2, ng + id + 1, format!("skin {}", g.names[id])));
+                surfs.push((id + 1, b, Some(ng + id + 1), faces));
+            }
+            (vols, surfs, names)
+        }
+    };
     let boundary: &[([usize; 3], u32)] = groups.map_or(&[], |g| &g.boundary);
     let b = boundary.len();
     let first_volume = volumes.first().map_or(1, |v| v.0);
@@ -308,7 +309,7 @@ mod tests {
         assert_eq!(phys, vec![(1, 3), (2, 4), (1, 1), (2, 2)]);
         let el = at("$Elements");
         assert_eq!(lines[el + 1], "4 18 1 18");
-        let mut seen = vec![0usize; 18];
+        let mut seen = [0usize; 18];
         let mut k = el + 2;
         let mut faces = 0;
         while lines[k] != "$EndElements" {

@@ -17,7 +17,8 @@ use crate::error::{Error, Result};
 use crate::geometry::{Point, TriMesh, Vec3};
 use std::path::Path;
 
-/// Read an OBJ file whose coordinates are in `units`; returns the mesh in millimetres.
+/// Read an OBJ file whose coordinates are in `units` (unless it was written by [`write_obj`],
+/// whose header states its unit, which then wins); returns the mesh in millimetres.
 pub fn read_obj(path: &Path, units: Units) -> Result<TriMesh> {
     let bytes = read_bytes(path)?;
     read_obj_bytes(&bytes, units, path)
@@ -34,6 +35,16 @@ pub fn read_obj(path: &Path, units: Units) -> Result<TriMesh> {
 /// face.
 pub(crate) fn read_obj_bytes(bytes: &[u8], units: Units, label: &Path) -> Result<TriMesh> {
     let err = |line: usize, msg: String| Error::input(label, format!("line {line}: {msg}"));
+    let units = match written_units(bytes) {
+        Some(u) if u != units => {
+            log::debug!(
+                "{}: read in {u}, as its ergohand header says (not {units})",
+                label.display()
+            );
+            u
+        }
+        _ => units,
+    };
     let scale = units.to_mm();
     let mut vertices: Vec<Point> = Vec::new();
     let mut faces: Vec<[usize; 3]> = Vec::new();
@@ -164,8 +175,29 @@ pub(crate) fn read_obj_bytes(bytes: &[u8], units: Units, label: &Path) -> Result
     TriMesh::new(vertices, faces).map_err(|e| e.in_file(label))
 }
 
+/// The unit an OBJ written by [`write_obj`] states: its first line is `# ergohand OBJ mesh` and
+/// its second `# units: U ...`. OBJ has no unit of its own, so only a file that says it was
+/// written this way is trusted; any other file is read in the unit the caller names.
+fn written_units(bytes: &[u8]) -> Option<Units> {
+    let head = &bytes[..bytes.len().min(200)];
+    let text = std::str::from_utf8(head)
+        .or_else(|e| std::str::from_utf8(&head[..e.valid_up_to()]))
+        .ok()?;
+    let mut lines = text.lines();
+    if lines.next()?.trim_end() != "# ergohand OBJ mesh" {
+        return None;
+    }
+    let rest = lines.next()?.strip_prefix("# units: ")?;
+    rest.split_whitespace().next()?.parse().ok()
+}
+
 /// Write `mesh` (mm) as OBJ with coordinates in `units`, optionally with one unit normal per
-/// vertex (`vn`, referenced as `f a//a ...`).
+/// vertex (`vn`, referenced as `f a//a ...`). The header states the unit (`# units: mm`), which
+/// [`read_obj`] honours over the unit it is given.
+///
+/// A model folder's OBJs are millimetres (the subject-format spec); metres suit a viewer that
+/// takes OBJ lengths as metres, as Blender's importer does (a millimetre hand would be about
+/// 200 m wide there).
 ///
 /// Numbers are printed with Rust's shortest round-trip `f64` formatting, so reading the file
 /// back in the same unit restores every millimetre coordinate exactly when `units` is
@@ -409,9 +441,20 @@ mod tests {
         for (a, b) in back.vertices.iter().zip(&m.vertices) {
             assert!((a - b).norm() <= 1e-12 * 40.0);
         }
-        // Read as millimetres the same file is a thousand times smaller.
-        let small = read_obj(&p, Units::Millimetres).unwrap();
+        // Its header says metres, so it is read in metres whatever the caller says; without the
+        // header the same numbers read as millimetres are a thousand times smaller.
+        let told_mm = read_obj(&p, Units::Millimetres).unwrap();
+        assert_eq!(told_mm, back);
+        assert!(
+            text.starts_with("# ergohand OBJ mesh\n# units: m "),
+            "{text}"
+        );
+        let headless = text.replacen("# ergohand OBJ mesh", "# another writer", 1);
+        let small = read_obj_bytes(headless.as_bytes(), Units::Millimetres, label()).unwrap();
         assert!((small.signed_volume() * 1e9 - m.signed_volume()).abs() < 1e-6);
+        // And the other way: a millimetre file read by a caller who says metres.
+        write_obj(&p, &m, Units::Millimetres, None).unwrap();
+        assert_eq!(read_obj(&p, Units::Metres).unwrap(), m);
     }
 
     const MULTI: &str = "# two objects sharing vertices, a quad, negative indices, continuation\n\
