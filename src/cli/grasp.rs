@@ -388,14 +388,23 @@ pub fn grasp_population(
     let own = part.mesh.transformed(&s.part_pose.inverse());
     // Opened facing the place most hands touch.
     let colours = crate::validate::pages::hand_share_colours(&touched, summary.hands);
+    let share: Vec<f32> = touched
+        .iter()
+        .map(|&c| (100.0 * c as f64 / summary.hands.max(1) as f64) as f32)
+        .collect();
+    // Split at the part's creases, as in every hand's grasp.glb: smooth where the CAD surface
+    // is, sharp at its edges.
+    let split =
+        crate::geometry::crease_normals(&own, crate::geometry::crease_normals::DEFAULT_CREASE_DEG);
     let glb = crate::io::gltf::glb_bytes(
         &crate::io::gltf::Scene {
             meshes: vec![crate::io::gltf::SceneMesh {
                 name: "part".into(),
-                mesh: own.clone(),
-                normals: None,
+                mesh: split.mesh.clone(),
+                normals: Some(split.normals.clone()),
                 colors: Some(
-                    colours
+                    split
+                        .carry(&colours)
                         .into_iter()
                         .map(crate::validate::error_map::srgb_to_linear)
                         .collect(),
@@ -403,10 +412,7 @@ pub fn grasp_population(
                 skin: None,
                 attributes: vec![crate::io::gltf::VertexAttribute {
                     name: crate::validate::pages::HAND_SHARE_ATTRIBUTE.into(),
-                    values: touched
-                        .iter()
-                        .map(|&c| (100.0 * c as f64 / summary.hands.max(1) as f64) as f32)
-                        .collect(),
+                    values: split.carry(&share),
                 }],
                 morph_targets: Vec::new(),
             }],

@@ -15,7 +15,9 @@
 //     its background, counted here from the canvas itself (drawn into a 2-D canvas), not
 //     taken from the page's own report; or no mesh at all;
 //   - a page with joint sliders (a posed hand) where moving one slider, through the page's own
-//     range input, changes fewer than 0.2 % (and 1000) of the canvas' pixels.
+//     range input, changes fewer than 0.2 % (and 1000) of the canvas' pixels;
+//   - a page whose data names a per-vertex value to read out (meshes[].value) where no click
+//     on a grid over the canvas reads a finite value out.
 // With --agree-obj, a page X.view.html with joint sliders is also compared with X.obj beside
 // it: the page re-skins the hand at the page's angles with its port of the toolkit's forward
 // kinematics and dual-quaternion skinning, and fails unless every vertex is within 0.01 mm of
@@ -202,6 +204,22 @@ async function checkRig(page, file, problems, result) {
   if (!(worst <= AGREE_MM)) problems.push(`--agree-obj: vertex ${at} is ${worst.toFixed(4)} mm from ${path.basename(obj)} (limit ${AGREE_MM} mm)`);
 }
 
+// In the page: click (through the page's own pick) on a grid over the canvas until a hit
+// reads a value out; the first such readout, or how many clicks hit anything.
+function pickAValue() {
+  const c = document.querySelector("canvas").getBoundingClientRect();
+  let hits = 0;
+  for (let i = 1; i < 24; i++) {
+    for (let j = 1; j < 24; j++) {
+      const out = window.ergohandView.pick(c.left + (c.width * i) / 24, c.top + (c.height * j) / 24);
+      if (!out) continue;
+      hits++;
+      if (typeof out.value === "number" && Number.isFinite(out.value)) return { hits, out };
+    }
+  }
+  return { hits };
+}
+
 async function check(file) {
   const problems = [];
   const work = fs.mkdtempSync(path.join(os.tmpdir(), "check-view-"));
@@ -229,7 +247,8 @@ async function check(file) {
     await page.waitForTimeout(SETTLE_MS);
     const hook = await page.evaluate(() => {
       const v = window.ergohandView;
-      return { ready: !!v.ready, error: v.error || null, meshes: v.meshes, triangles: v.triangles, loadMs: v.loadMs, nonBackgroundPixels: v.nonBackgroundPixels, joints: (v.joints || []).length };
+      return { ready: !!v.ready, error: v.error || null, meshes: v.meshes, triangles: v.triangles, loadMs: v.loadMs, nonBackgroundPixels: v.nonBackgroundPixels, joints: (v.joints || []).length,
+        values: Array.from(JSON.parse(document.getElementById("ergohand-view-data").textContent).meshes || []).filter((m) => m && m.value).length };
     });
     result = { hook, wallMs };
     if (hook.error) problems.push(`the page reports: ${hook.error}`);
@@ -247,6 +266,11 @@ async function check(file) {
       }
       if (shotDir) await page.screenshot({ path: path.join(shotDir, path.basename(file).replace(/\.html?$/i, "") + ".png") });
       if (hook.joints > 0) await checkRig(page, file, problems, result);
+      if (hook.values > 0) {
+        const picked = await page.evaluate(pickAValue);
+        if (!picked.out) problems.push(`no click reads a value out (${picked.hits} clicks hit a mesh)`);
+        else result.picked = picked.out;
+      }
     }
   } catch (e) {
     const msg = e.message.split("\n")[0];
@@ -275,7 +299,8 @@ for (const file of args) {
     console.log(`check_view: ${file}: ok: ${h.meshes} meshes, ${h.triangles} triangles, ${result.nonBackground} of ` +
       `${result.px.width * result.px.height} pixels drawn, ready ${h.loadMs} ms after navigation (${result.wallMs} ms wall)` +
       (h.joints > 0 ? `; ${h.joints} joints, a slider changed ${result.sliderPixels} pixels` : "") +
-      (result.agreeMm !== undefined ? `; the page's skinning within ${result.agreeMm.toExponential(2)} mm of the OBJ` : ""));
+      (result.agreeMm !== undefined ? `; the page's skinning within ${result.agreeMm.toExponential(2)} mm of the OBJ` : "") +
+      (result.picked ? `; a click reads ${result.picked.label} ${result.picked.value.toFixed(2)} ${result.picked.unit}` : ""));
   }
 }
 await browser.close();
