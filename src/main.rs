@@ -107,6 +107,10 @@ enum Command {
         /// (for comparison).
         #[arg(long)]
         no_template_posing: bool,
+        /// Leave the fitted skin as the transfer gives it where it folds, instead of relaxing
+        /// the fit's displacement there (for comparison).
+        #[arg(long)]
+        no_unfold: bool,
         /// Weight of the joint-centre terms of the skin fit; 0 leaves them out.
         #[arg(long, default_value_t = ergohand::skin::pipeline::CENTRE_WEIGHT)]
         centre_weight: f64,
@@ -295,6 +299,7 @@ fn main() -> ExitCode {
             out,
             fit_resolution,
             no_template_posing,
+            no_unfold,
             centre_weight,
             caliper_rounds,
             shape_prior,
@@ -304,6 +309,7 @@ fn main() -> ExitCode {
                 Ok(ergohand::skin::pipeline::SkinOptions {
                     caliper_rounds,
                     shape_prior: cli::reconstruct::shape_prior_option(shape_prior.as_deref())?,
+                    unfold: !no_unfold,
                     ..o
                 })
             })

@@ -85,6 +85,8 @@ pub struct SkinSummary {
     pub section_3_6_shift_mm: BTreeMap<String, f64>,
     pub inverted_faces: usize,
     pub degenerate_faces: usize,
+    /// Faces the fit folded and the skin stage relaxed (`inverted_faces` is what is left).
+    pub unfolded_faces: usize,
 }
 
 /// The content fingerprint ([`crate::io::fingerprint`]) of a reconstruction's inputs:
@@ -340,5 +342,6 @@ fn skin_summary(skin: &SkinFit, opts: &SkinOptions) -> SkinSummary {
         section_3_6_shift_mm: skin.section_shifts_mm.clone(),
         inverted_faces: skin.inverted_faces,
         degenerate_faces: skin.degenerate_faces,
+        unfolded_faces: skin.unfolded_faces,
     }
 }

@@ -1735,7 +1735,7 @@ fn grasp_a_population(model: &Path, tmp: &Path) {
     let share = &part.meshes[0].attributes[0];
     assert_eq!(share.name, "_HAND_SHARE_PCT");
     assert!(share.values.iter().all(|&v| v == 0.0 || v == 100.0));
-    assert_eq!(share.values.iter().any(|&v| v == 100.0), touched);
+    assert_eq!(share.values.contains(&100.0), touched);
     // One hand alone, through the single-hand command: the same grasp.
     let single = tmp.join("SINGLE");
     let o = ergohand(&[

@@ -177,6 +177,14 @@ pub(crate) fn pose_job(
         None => None,
         Some(rig) => {
             let posed = rig.pose(&hand, &pose, opts.preserve_volume, &volume_opts)?;
+            let (unfolded, left) = posed.skin_unfolded;
+            if unfolded > 0 {
+                log::log!(
+                    voice.info(),
+                    "skinning turned {unfolded} skin faces over (a crease two bones pull apart); \
+                     relaxed there, {left} left"
+                );
+            }
             if matches!(ext.as_deref(), Some("vtk") | Some("msh")) {
                 if let Some(w) = inverted_warning(&posed, rig.tets.len()) {
                     warnings.push(format!("{}: {w}", out_file.display()));

@@ -40,6 +40,8 @@ use crate::geometry::{Point, TriMesh, Vec3};
 use crate::io::Units;
 use crate::skeleton::forward_kinematics::link_transforms;
 use crate::skeleton::{Pose, Skeleton};
+use crate::skin::unfold::{bone_carried_normals, unfold_skin, UNFOLD_PASSES};
+use crate::template::dominant_links;
 use crate::template::{LinkWeights, TemplateHand};
 use crate::tet::{
     place_boundary_nodes, untangle, SurfaceBinding, TemplateTet, UntangleOptions, UntangleStats,
@@ -267,6 +269,10 @@ pub struct VolumePose {
     pub untangle: UntangleStats,
     /// Elements still inverted after it, counted per segment, as (link, count), most first.
     pub inverted_by_link: Vec<(Link, usize)>,
+    /// Faces of the skinned skin that turned over from their bones' (a joint's weights reaching
+    /// across a crease), relaxed before the mesh's boundary was placed on the skin, and those
+    /// left turned over ([`crate::skin::unfold::unfold_skin`]).
+    pub skin_unfolded: (usize, usize),
 }
 
 impl VolumeRig {
@@ -326,7 +332,9 @@ impl VolumeRig {
         opts: &VolumeOptions,
     ) -> Result<VolumePose> {
         let n = Link::ALL.len();
-        let (skin, mut nodes, mut correction) = self.skin_and_nodes(hand, pose, correct, opts)?;
+        let (mut skin, mut nodes, mut correction) =
+            self.skin_and_nodes(hand, pose, correct, opts)?;
+        let skin_unfolded = unfold_posed_skin(hand, pose, &mut skin);
         place_boundary_nodes(&self.binding, &skin, &mut nodes)?;
         // Skinning keeps no element positive where a joint bends hard (the palmar creases of a
         // fist): the interior nodes give way where that happens.
@@ -367,6 +375,7 @@ impl VolumeRig {
             volume_changes,
             untangle: untangled,
             inverted_by_link,
+            skin_unfolded,
         })
     }
 
@@ -419,6 +428,28 @@ impl VolumeRig {
         Ok((skin, nodes, correction))
     }
 }
+/// `skin`, `hand`'s skin skinned in `pose`, relaxed where a face turned over from its bone's
+/// rotation of its rest face (blended weights can fold the skin through itself at a crease that
+/// two bones pull apart, such as the radial wrist under the thumb's metacarpal in a pinch):
+/// the faces found so and those left.
+fn unfold_posed_skin(hand: &IndividualHand, pose: &Pose, skin: &mut TriMesh) -> (usize, usize) {
+    let rotations: Vec<_> = link_transforms(&hand.skeleton, pose)
+        .iter()
+        .map(|t| t.rotation)
+        .collect();
+    let rest = &hand.skin;
+    let rest_guard: Vec<Vec3> = (0..rest.n_faces()).map(|f| rest.face_cross(f)).collect();
+    let guard = bone_carried_normals(rest, &dominant_links(&hand.weights), &rotations);
+    unfold_skin(
+        rest,
+        &rest_guard,
+        skin,
+        &guard,
+        &rest.topology(),
+        UNFOLD_PASSES,
+    )
+}
+
 /// The [`VolumeRig`] of the `reconstruct` folder `model_dir`: its tetrahedral mesh
 /// (`tet.vtk`, homologous to the template's) with the template's node weights. Errors naming
 /// `tet.vtk` when it is missing or not homologous to the template's tet mesh (made by another

@@ -9,6 +9,7 @@
 //!   per-face frames (equation 3).
 //! * [`distal_frame`] aims each digit's last joint along its distal phalanx, carried from the
 //!   template by homology (no joint beyond it says where the phalanx points).
+//! * [`unfold`] relaxes the fitted displacement where it turns faces over (a skin never folds).
 //! * [`shape_prior`] adds what the population says of the shape no landmark or caliper
 //!   reaches (a normal-offset field predicted from the caliper dimensions).
 
@@ -20,3 +21,4 @@ pub mod section_centre;
 pub mod shape_prior;
 pub mod simplify;
 pub mod transfer;
+pub mod unfold;

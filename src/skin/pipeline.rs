@@ -27,11 +27,10 @@ use super::correspondence::{
 use super::distal_frame::distal_frames_by_homology;
 use super::posture_fit::{fit_posture, PostureFit, PostureTargets, SkinnedMarker};
 use super::section_centre::centre_on_cross_section;
-use super::shape_prior::{
-    fold_free_displacement, subject_features, JointLine, ShapePrior, UNFOLD_PASSES,
-};
+use super::shape_prior::{fold_free_displacement, subject_features, JointLine, ShapePrior};
 use super::simplify::simplify_qem;
 use super::transfer::{bind, transfer};
+use super::unfold::{bone_carried_normals, unfold_skin, UNFOLD_PASSES};
 use crate::anatomy::{landmark_names, palm_markers, Dimension, Joint};
 use crate::error::{Error, Result};
 use crate::geometry::{absolute_orientation, Point, TriMesh, Vec3};
@@ -125,6 +124,11 @@ pub struct SkinOptions {
     /// normals before the caliper rounds ([`super::shape_prior`]); `None` leaves the template's
     /// shape there, as the paper.
     pub shape_prior: Option<Arc<ShapePrior>>,
+    /// Relax the fitted skin where it folds ([`super::unfold::unfold_skin`]): the fit on the
+    /// simplified template, carried to the fine one by per-face frames, turns faces over where
+    /// a coarse triangle spans a crease or the forearm's end; off leaves the transfer as it is
+    /// (the paper).
+    pub unfold: bool,
 }
 
 impl Default for SkinOptions {
@@ -139,6 +143,7 @@ impl Default for SkinOptions {
             caliper_gain: CALIPER_GAIN,
             finger_caliper_slack_mm: FINGER_CALIPER_SLACK_MM,
             shape_prior: None,
+            unfold: true,
         }
     }
 }
@@ -179,6 +184,9 @@ pub struct SkinFit {
     pub inverted_faces: usize,
     /// Faces of `high` with (almost) no area left: below 1e-6 of the template face's area.
     pub degenerate_faces: usize,
+    /// Faces the fit folded (inverted or collapsed where the posed template is not), which
+    /// [`SkinOptions::unfold`] relaxed; those it could not unfold are in `inverted_faces`.
+    pub unfolded_faces: usize,
     /// Whether the iterated fit converged.
     pub converged: bool,
     /// Linearised solves of the fit.
@@ -401,41 +409,50 @@ pub fn fit_skin(
     // must keep facing.
     let guard = bone_carried_normals(&aligned, &owners, &rotations);
     // Every round's skin has the template's faces: one topology serves them all.
-    let topology = prior_offsets.as_ref().map(|_| aligned.topology());
-    let fit_once = |distances: &[DistanceConstraint]| -> Result<(FitResult, TriMesh, TriMesh)> {
-        let fit = fit_landmarks_with_points(fit_mesh, &landmarks, distances, &centres, &params)?;
-        let mut high = match &binding {
-            Some(binding) => TriMesh {
-                vertices: transfer(binding, &fit.mesh)?,
-                faces: posed.faces.clone(),
-            },
-            None => fit.mesh.clone(),
-        };
-        let mut low = match &binding {
-            Some(_) => fit.mesh.clone(),
-            None => TriMesh {
-                vertices: simplified
-                    .kept
-                    .iter()
-                    .map(|&v| fit.mesh.vertices[v])
-                    .collect(),
-                faces: simplified.mesh.faces.clone(),
-            },
-        };
-        if let (Some(s), Some(topology)) = (&prior_offsets, &topology) {
-            // Relaxed on each round's own skin: a displacement found on another would fold
-            // what it did not see.
-            let (d, _) = fold_free_displacement(&high, topology, s, &guard, UNFOLD_PASSES);
-            for (v, x) in high.vertices.iter_mut().zip(d.iter()) {
-                *v += x;
+    let topology = (prior_offsets.is_some() || opts.unfold).then(|| aligned.topology());
+    let fit_once =
+        |distances: &[DistanceConstraint]| -> Result<(FitResult, TriMesh, TriMesh, usize)> {
+            let fit =
+                fit_landmarks_with_points(fit_mesh, &landmarks, distances, &centres, &params)?;
+            let mut high = match &binding {
+                Some(binding) => TriMesh {
+                    vertices: transfer(binding, &fit.mesh)?,
+                    faces: posed.faces.clone(),
+                },
+                None => fit.mesh.clone(),
+            };
+            let mut low = match &binding {
+                Some(_) => fit.mesh.clone(),
+                None => TriMesh {
+                    vertices: simplified
+                        .kept
+                        .iter()
+                        .map(|&v| fit.mesh.vertices[v])
+                        .collect(),
+                    faces: simplified.mesh.faces.clone(),
+                },
+            };
+            let before = high.vertices.clone();
+            if let (Some(s), Some(topology)) = (&prior_offsets, &topology) {
+                // Relaxed on each round's own skin: a displacement found on another would fold
+                // what it did not see.
+                let (d, _) = fold_free_displacement(&high, topology, s, &guard, UNFOLD_PASSES);
+                for (v, x) in high.vertices.iter_mut().zip(d.iter()) {
+                    *v += x;
+                }
+            }
+            let mut unfolded = 0;
+            if let (true, Some(topology)) = (opts.unfold, &topology) {
+                // Each round's skin, so that the calipers measure the skin that is written.
+                unfolded =
+                    unfold_skin(&posed, &guard, &mut high, &guard, topology, UNFOLD_PASSES).0;
             }
             for (v, &k) in low.vertices.iter_mut().zip(&simplified.kept) {
-                *v += d[k];
+                *v += high.vertices[k] - before[k];
             }
-        }
-        Ok((fit, low, high))
-    };
-    let (mut fit, mut low, mut high) = fit_once(&distances)?;
+            Ok((fit, low, high, unfolded))
+        };
+    let (mut fit, mut low, mut high, mut unfolded_faces) = fit_once(&distances)?;
 
     // 6. The calipers by definition: each dimension measured on the fitted skin the way the
     // spec defines it (a cross-section at the subject's joint), and the pair's target length
@@ -528,7 +545,7 @@ pub fn fit_skin(
                 d.length_mm = (d.length_mm - g * excess(&d.name, *e)).max(1.0);
             }
         }
-        let (f, l, h) = fit_once(&targets)?;
+        let (f, l, h, u) = fit_once(&targets)?;
         let (e, round_section) = caliper_error(&h);
         // A dimension whose miss grew and changed sign was overshot (its pair moves the
         // section's extreme by more than itself): its step is halved from then on.
@@ -543,7 +560,7 @@ pub fn fit_skin(
         current = e;
         // The best round is kept, not the last.
         if score(&current) < score(&caliper_residuals_mm) {
-            (fit, low, high) = (f, l, h);
+            (fit, low, high, unfolded_faces) = (f, l, h, u);
             section = round_section;
             caliper_residuals_mm = current.clone();
             best_targets = targets.clone();
@@ -603,6 +620,7 @@ pub fn fit_skin(
         section_shifts_mm: section.2,
         posture,
         inverted_faces,
+        unfolded_faces,
         degenerate_faces,
         converged: fit.converged,
         iterations: fit.iterations,
@@ -689,21 +707,6 @@ fn centre_ring(
     let lam = gram.cholesky()?.solve(&(b - &a * &w0));
     let w = w0 + a.transpose() * lam;
     Some((verts, w.iter().copied().collect()))
-}
-
-/// Per face of `mesh` (the template before posing), its area-weighted normal turned by its own
-/// bone's rotation (`rotations` per link, the bone being the dominant link of the face's first
-/// vertex, `owners` per vertex).
-fn bone_carried_normals(
-    mesh: &TriMesh,
-    owners: &[usize],
-    rotations: &[nalgebra::UnitQuaternion<f64>],
-) -> Vec<Vec3> {
-    mesh.faces
-        .iter()
-        .enumerate()
-        .map(|(f, face)| rotations[owners[face[0]]] * mesh.face_cross(f))
-        .collect()
 }
 
 /// Faces of `fitted` whose normal turned more than 90° from `guard` (per face: the template's
@@ -1037,6 +1040,39 @@ mod tests {
             plain.inverted_faces
         );
         assert!(prior.inverted_faces == 0 || prior.warnings.iter().any(|w| w.contains("inverted")));
+    }
+
+    /// On a procedural hand (seed 7) the fit on the simplified template, carried to the fine
+    /// one, turns faces over; relaxed where it folds, the skin has none left and stays as close
+    /// to the CT-like reference (the relaxation moves only the folded neighbourhoods).
+    #[test]
+    fn the_fitted_skin_is_unfolded_and_kept_elsewhere() {
+        let (s, t, model) = procedural_seven();
+        let run = |unfold: bool| {
+            let opts = SkinOptions {
+                unfold,
+                ..SkinOptions::default()
+            };
+            fit_with_model(&s, &t, &model, &opts)
+        };
+        let tree = AabbTree::new(&s.reference);
+        let mean = |m: &TriMesh| mean_distance(&tree, m);
+        let (as_fitted, unfolded) = (run(false), run(true));
+        eprintln!(
+            "inverted faces {} -> {} ({} relaxed); skin to reference {:.3} -> {:.3} mm",
+            as_fitted.inverted_faces,
+            unfolded.inverted_faces,
+            unfolded.unfolded_faces,
+            mean(&as_fitted.high),
+            mean(&unfolded.high)
+        );
+        assert!(as_fitted.inverted_faces > 0);
+        assert_eq!(as_fitted.unfolded_faces, 0);
+        assert!(unfolded.unfolded_faces > 0);
+        assert_eq!(unfolded.inverted_faces, 0);
+        assert!((mean(&unfolded.high) - mean(&as_fitted.high)).abs() < 0.02);
+        assert_eq!(unfolded.high.faces, t.mesh.faces);
+        assert!(!unfolded.warnings.iter().any(|w| w.contains("inverted")));
     }
 
     /// Trials too short for the link model to trust its hinge axes (3 s; its warnings fire):

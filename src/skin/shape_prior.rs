@@ -29,6 +29,7 @@
 //! subjects of both bodies that no validation subject shares (the README says which and how
 //! to train another, e.g. from a lab's own CT scans).
 
+use super::unfold::{half_ring_step, relax_folds};
 use crate::anatomy::Dimension;
 use crate::error::{Error, Result};
 use crate::geometry::closest_point::AabbTree;
@@ -109,23 +110,6 @@ pub fn fill_and_smooth(field: &[Option<f64>], rings: &[Vec<usize>], passes: usiz
         x = (0..x.len()).map(|i| half_ring_step(&x, rings, i)).collect();
     }
     x
-}
-
-/// Value `i` of `x` averaged with the mean of its ring's (half a uniform-Laplacian step); a
-/// vertex without neighbours keeps its value.
-fn half_ring_step<T>(x: &[T], rings: &[Vec<usize>], i: usize) -> T
-where
-    T: Copy
-        + std::ops::Add<Output = T>
-        + std::ops::Mul<f64, Output = T>
-        + std::ops::Div<f64, Output = T>
-        + std::iter::Sum<T>,
-{
-    let r = &rings[i];
-    if r.is_empty() {
-        return x[i];
-    }
-    x[i] * 0.5 + r.iter().map(|&j| x[j]).sum::<T>() / r.len() as f64 * 0.5
 }
 
 /// One training subject: its features and its fitted skin's normal offsets to its
@@ -557,9 +541,6 @@ const FOLD_COS: f64 = 0.5;
 /// See [`FOLD_COS`].
 const FOLD_AREA_RATIO: f64 = 0.25;
 
-/// Relaxation passes [`fold_free_displacement`] makes at most.
-pub const UNFOLD_PASSES: usize = 200;
-
 /// The displacement that moves every vertex of `mesh` (whose [`Topology`] is `topology`) by
 /// `offsets[i]` along its unit normal,
 /// relaxed where it would fold the surface, and the number of faces still folded after
@@ -580,7 +561,6 @@ pub fn fold_free_displacement(
     guard: &[Vec3],
     max_passes: usize,
 ) -> (Vec<Vec3>, usize) {
-    let rings = &topology.vertex_rings;
     let normals = mesh.vertex_normals();
     let mut d: Vec<Vec3> = normals.iter().zip(offsets).map(|(n, s)| n * *s).collect();
     let folded = |f: usize, d: &[Vec3]| -> bool {
@@ -591,38 +571,8 @@ pub fn fold_free_displacement(
             || b.norm() < FOLD_AREA_RATIO * a.norm()
             || (g.dot(&a) > 0.0 && g.dot(&b) <= 0.0)
     };
-    let mut bad_faces: Vec<usize> = (0..mesh.n_faces()).filter(|&f| folded(f, &d)).collect();
-    for _ in 0..max_passes {
-        if bad_faces.is_empty() {
-            break;
-        }
-        let mut relax = vec![false; d.len()];
-        for &f in &bad_faces {
-            for &v in &mesh.faces[f] {
-                relax[v] = true;
-                for &w in &rings[v] {
-                    relax[w] = true;
-                }
-            }
-        }
-        let relaxed: Vec<usize> = (0..d.len()).filter(|&i| relax[i]).collect();
-        let moved: Vec<Vec3> = relaxed
-            .iter()
-            .map(|&i| half_ring_step(&d, rings, i))
-            .collect();
-        for (&i, x) in relaxed.iter().zip(moved) {
-            d[i] = x;
-        }
-        // Only faces touching a moved vertex can have changed; every folded face is one.
-        let mut touched: Vec<usize> = relaxed
-            .iter()
-            .flat_map(|&v| topology.vertex_faces[v].iter().copied())
-            .collect();
-        touched.sort_unstable();
-        touched.dedup();
-        bad_faces = touched.into_iter().filter(|&f| folded(f, &d)).collect();
-    }
-    (d, bad_faces.len())
+    let left = relax_folds(mesh, topology, &mut d, folded, max_passes);
+    (d, left)
 }
 
 static BUILTIN_JSON: &str = include_str!("../../assets/generic-hand/shape-prior.json");
@@ -630,6 +580,7 @@ static BUILTIN_JSON: &str = include_str!("../../assets/generic-hand/shape-prior.
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::skin::unfold::UNFOLD_PASSES;
 
     fn sphere(r: f64) -> TriMesh {
         crate::geometry::mesh::tests::icosphere(r, 3)

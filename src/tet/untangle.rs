@@ -24,6 +24,10 @@ use crate::geometry::{Point, Vec3};
 use nalgebra::Matrix3;
 use serde::Serialize;
 
+/// Runs of [`untangle`] at most: a fresh run starts from what the one before left inverted
+/// (in the posed meshes of the test subjects, one or two were ever needed).
+const RUNS: usize = 4;
+
 /// Options of [`untangle`].
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct UntangleOptions {
@@ -179,80 +183,90 @@ pub fn untangle(
     if opts.max_boundary_move_mm > 0.0 {
         ladder.push(opts.max_boundary_move_mm);
     }
-    // How far each node may go from where it started: interior nodes anywhere.
+    // A run focuses on the nodes around what is inverted when it starts, and widens as it goes;
+    // where it widened far and stalled, a fresh run from the elements still inverted (its
+    // nodes still bound to within the reach of where they first were) clears what is left.
+    // How far each node may go from where it started: interior nodes anywhere; a boundary
+    // node keeps the reach an earlier run gave it.
     let mut reach: Vec<f64> = on_boundary
         .iter()
         .map(|&b| if b { 0.0 } else { f64::INFINITY })
         .collect();
-    let mut active = vec![false; n];
-    for &boundary_reach in &ladder {
-        if bad.is_empty() {
-            break;
-        }
-        // The nodes of what is inverted and of the elements around it may move (the boundary's
-        // by this step's reach).
-        let around = |bad: &[usize], active: &mut Vec<bool>, reach: &mut Vec<f64>| {
-            for &t in bad {
-                for &v in &tets[t] {
-                    for &u in star[v].iter().flat_map(|&s| tets[s].iter()) {
-                        if on_boundary[u] {
-                            reach[u] = reach[u].max(boundary_reach);
-                        }
-                        if reach[u] > 0.0 {
-                            active[u] = true;
+    for _run in 0..RUNS {
+        let inverted_at_start = bad.len();
+        let mut active = vec![false; n];
+        for &boundary_reach in &ladder {
+            if bad.is_empty() {
+                break;
+            }
+            // The nodes of what is inverted and of the elements around it may move (the boundary's
+            // by this step's reach).
+            let around = |bad: &[usize], active: &mut Vec<bool>, reach: &mut Vec<f64>| {
+                for &t in bad {
+                    for &v in &tets[t] {
+                        for &u in star[v].iter().flat_map(|&s| tets[s].iter()) {
+                            if on_boundary[u] {
+                                reach[u] = reach[u].max(boundary_reach);
+                            }
+                            if reach[u] > 0.0 {
+                                active[u] = true;
+                            }
                         }
                     }
                 }
+            };
+            around(&bad, &mut active, &mut reach);
+            let mut unchanged = 0;
+            for _ in 0..opts.max_sweeps {
+                stats.sweeps += 1;
+                let mut order: Vec<usize> = (0..n).filter(|&v| active[v]).collect();
+                // Forward then backward (symmetric Gauss-Seidel).
+                let backward: Vec<usize> = order.iter().rev().copied().collect();
+                order.extend(backward);
+                for &v in &order {
+                    relax_node(
+                        nodes,
+                        tets,
+                        &star[v],
+                        &target,
+                        v,
+                        (start[v].coords, reach[v]),
+                    );
+                }
+                let now = inverted(nodes);
+                // The same elements inverted after three sweeps: this reach is not enough.
+                unchanged = if now == bad { unchanged + 1 } else { 0 };
+                bad = now;
+                if bad.is_empty() || unchanged == 3 {
+                    break;
+                }
+                around(&bad, &mut active, &mut reach);
             }
-        };
-        around(&bad, &mut active, &mut reach);
-        let mut unchanged = 0;
+        }
+        // What the penalty's compromises leave inverted (a sliver flattened between its
+        // neighbours) is polished by raising the star's smallest volume itself, one node at a time,
+        // accepting only moves that leave fewer inverted elements or a larger smallest volume.
         for _ in 0..opts.max_sweeps {
-            stats.sweeps += 1;
-            let mut order: Vec<usize> = (0..n).filter(|&v| active[v]).collect();
-            // Forward then backward (symmetric Gauss-Seidel).
-            let backward: Vec<usize> = order.iter().rev().copied().collect();
-            order.extend(backward);
-            for &v in &order {
-                relax_node(
-                    nodes,
-                    tets,
-                    &star[v],
-                    &target,
-                    v,
-                    (start[v].coords, reach[v]),
-                );
-            }
-            let now = inverted(nodes);
-            // The same elements inverted after three sweeps: this reach is not enough.
-            unchanged = if now == bad { unchanged + 1 } else { 0 };
-            bad = now;
-            if bad.is_empty() || unchanged == 3 {
+            if bad.is_empty() {
                 break;
             }
-            around(&bad, &mut active, &mut reach);
+            let nodes_of_bad: Vec<usize> = bad
+                .iter()
+                .flat_map(|&t| tets[t].iter().copied())
+                .filter(|&v| reach[v] > 0.0)
+                .collect();
+            for v in nodes_of_bad {
+                raise_smallest_volume(nodes, tets, &star[v], v, (start[v].coords, reach[v]));
+            }
+            stats.sweeps += 1;
+            let now = inverted(nodes);
+            let stalled = now == bad;
+            bad = now;
+            if stalled {
+                break;
+            }
         }
-    }
-    // What the penalty's compromises leave inverted (a sliver flattened between its
-    // neighbours) is polished by raising the star's smallest volume itself, one node at a time,
-    // accepting only moves that leave fewer inverted elements or a larger smallest volume.
-    for _ in 0..opts.max_sweeps {
-        if bad.is_empty() {
-            break;
-        }
-        let nodes_of_bad: Vec<usize> = bad
-            .iter()
-            .flat_map(|&t| tets[t].iter().copied())
-            .filter(|&v| reach[v] > 0.0)
-            .collect();
-        for v in nodes_of_bad {
-            raise_smallest_volume(nodes, tets, &star[v], v, (start[v].coords, reach[v]));
-        }
-        stats.sweeps += 1;
-        let now = inverted(nodes);
-        let stalled = now == bad;
-        bad = now;
-        if stalled {
+        if bad.is_empty() || bad.len() >= inverted_at_start {
             break;
         }
     }

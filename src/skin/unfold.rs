@@ -1,0 +1,227 @@
+//! Local relaxation of a displacement field where it folds a surface.
+//!
+//! A displacement that varies faster than the surface curves (a normal offset deeper than the
+//! radius of a ridge, or a coarse fit carried to the fine template by per-face frames where the
+//! coarse triangles span a crease or the end of the forearm) turns faces over. A skin never
+//! folds, so there the displacement of the folded faces' vertices and of their rings is averaged
+//! with the neighbours' (half a uniform-Laplacian step on the 3D vectors, so that converging
+//! normals cancel), and the test is repeated until no face folds; everywhere else the
+//! displacement is left exactly as it was. This is the umbrella (uniform) Laplacian smoothing of
+//! Taubin (1995, "A signal processing approach to fair surface design") restricted to where it
+//! is needed, on the displacement rather than the positions, so that the shape underneath is
+//! not shrunk.
+
+use crate::geometry::{Topology, TriMesh, Vec3};
+
+/// Relaxation passes [`relax_folds`] makes at most by default.
+pub const UNFOLD_PASSES: usize = 200;
+
+/// Value `i` of `x` averaged with the mean of its ring's (half a uniform-Laplacian step); a
+/// vertex without neighbours keeps its value.
+pub(crate) fn half_ring_step<T>(x: &[T], rings: &[Vec<usize>], i: usize) -> T
+where
+    T: Copy
+        + std::ops::Add<Output = T>
+        + std::ops::Mul<f64, Output = T>
+        + std::ops::Div<f64, Output = T>
+        + std::iter::Sum<T>,
+{
+    let r = &rings[i];
+    if r.is_empty() {
+        return x[i];
+    }
+    x[i] * 0.5 + r.iter().map(|&j| x[j]).sum::<T>() / r.len() as f64 * 0.5
+}
+
+/// Relax the displacement `d` of `mesh` (whose [`Topology`] is `topology`) where
+/// `folded(face, d)` says the displaced face folds: the displacement of every folded face's
+/// vertices and of their rings takes a half ring step, and only the faces around a moved vertex
+/// are tested again, for at most `max_passes` passes. Returns how many faces still fold.
+///
+/// Input: a mesh, its topology, a displacement per vertex and a fold test. Output: the
+/// displacement, changed only around folded faces; the count of faces left folded.
+pub fn relax_folds(
+    mesh: &TriMesh,
+    topology: &Topology,
+    d: &mut [Vec3],
+    folded: impl Fn(usize, &[Vec3]) -> bool,
+    max_passes: usize,
+) -> usize {
+    let rings = &topology.vertex_rings;
+    let mut bad_faces: Vec<usize> = (0..mesh.n_faces()).filter(|&f| folded(f, d)).collect();
+    for _ in 0..max_passes {
+        if bad_faces.is_empty() {
+            break;
+        }
+        let mut relax = vec![false; d.len()];
+        for &f in &bad_faces {
+            for &v in &mesh.faces[f] {
+                relax[v] = true;
+                for &w in &rings[v] {
+                    relax[w] = true;
+                }
+            }
+        }
+        let relaxed: Vec<usize> = (0..d.len()).filter(|&i| relax[i]).collect();
+        let moved: Vec<Vec3> = relaxed
+            .iter()
+            .map(|&i| half_ring_step(d, rings, i))
+            .collect();
+        for (&i, x) in relaxed.iter().zip(moved) {
+            d[i] = x;
+        }
+        // Only faces touching a moved vertex can have changed; every folded face is one.
+        let mut touched: Vec<usize> = relaxed
+            .iter()
+            .flat_map(|&v| topology.vertex_faces[v].iter().copied())
+            .collect();
+        touched.sort_unstable();
+        touched.dedup();
+        bad_faces = touched.into_iter().filter(|&f| folded(f, d)).collect();
+    }
+    bad_faces.len()
+}
+
+/// Per face of `mesh`, its area-weighted normal turned by its own bone's rotation
+/// (`rotations` per link, the bone being the dominant link of the face's first vertex,
+/// `owners` per vertex): the direction a face of a skin posed by those bones must keep facing.
+pub fn bone_carried_normals(
+    mesh: &TriMesh,
+    owners: &[usize],
+    rotations: &[nalgebra::UnitQuaternion<f64>],
+) -> Vec<Vec3> {
+    mesh.faces
+        .iter()
+        .enumerate()
+        .map(|(f, face)| rotations[owners[face[0]]] * mesh.face_cross(f))
+        .collect()
+}
+
+/// Whether a face whose area-weighted normal is `cross` has turned over (more than 90°) from
+/// `guard`, or lost its area (below 1e-6 of the guard's).
+pub fn turned_over(guard: &Vec3, cross: &Vec3) -> bool {
+    cross.norm() <= 1e-6 * guard.norm() || guard.dot(cross) < 0.0
+}
+
+/// `skin` (homologous to `source`: the same faces) with its displacement from `source` relaxed
+/// wherever a face of `skin` turned over from `skin_guard` (per face, the direction its normal
+/// must keep facing, e.g. the template's face carried by its bone, [`bone_carried_normals`])
+/// while the same face of `source` had not turned over from `source_guard`. Returns the faces
+/// found folded before and those left folded after.
+///
+/// A face already folded in `source` (a crease of the skinned template) is left alone: the
+/// relaxation averages displacements, and cannot unfold what the shape underneath folds.
+pub fn unfold_skin(
+    source: &TriMesh,
+    source_guard: &[Vec3],
+    skin: &mut TriMesh,
+    skin_guard: &[Vec3],
+    topology: &Topology,
+    max_passes: usize,
+) -> (usize, usize) {
+    let fine_before: Vec<bool> = (0..source.n_faces())
+        .map(|f| !turned_over(&source_guard[f], &source.face_cross(f)))
+        .collect();
+    let folded = |f: usize, d: &[Vec3]| -> bool {
+        if !fine_before[f] {
+            return false;
+        }
+        let p = skin.faces[f].map(|v| source.vertices[v] + d[v]);
+        turned_over(&skin_guard[f], &(p[1] - p[0]).cross(&(p[2] - p[0])))
+    };
+    let mut d: Vec<Vec3> = skin
+        .vertices
+        .iter()
+        .zip(&source.vertices)
+        .map(|(s, t)| s - t)
+        .collect();
+    let before = (0..skin.n_faces()).filter(|&f| folded(f, &d)).count();
+    if before == 0 {
+        return (0, 0);
+    }
+    let after = relax_folds(source, topology, &mut d, folded, max_passes);
+    for ((v, t), x) in skin.vertices.iter_mut().zip(&source.vertices).zip(&d) {
+        *v = t + x;
+    }
+    (before, after)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::geometry::Point;
+
+    /// A flat grid whose middle vertex is pushed through its neighbours (its six faces turn
+    /// over): relaxed, no face folds, the vertices far from the fold keep their displacement
+    /// exactly, and the pushed vertex ends between its neighbours' heights.
+    #[test]
+    fn a_pushed_vertex_is_unfolded_and_the_rest_kept() {
+        let n = 9;
+        let mut vertices = Vec::new();
+        for j in 0..n {
+            for i in 0..n {
+                vertices.push(Point::new(i as f64, j as f64, 0.0));
+            }
+        }
+        let mut faces = Vec::new();
+        for j in 0..n - 1 {
+            for i in 0..n - 1 {
+                let a = j * n + i;
+                faces.push([a, a + 1, a + n + 1]);
+                faces.push([a, a + n + 1, a + n]);
+            }
+        }
+        let source = TriMesh { vertices, faces };
+        let topology = source.topology();
+        let guard: Vec<Vec3> = (0..source.n_faces())
+            .map(|f| source.face_cross(f))
+            .collect();
+        // Everything lifted by 2 mm, the middle vertex moved sideways past its ring.
+        let mid = 4 * n + 4;
+        let mut skin = source.clone();
+        for v in skin.vertices.iter_mut() {
+            v.z += 2.0;
+        }
+        skin.vertices[mid].x += 1.6;
+        skin.vertices[mid].y += 1.6;
+        let turned = |m: &TriMesh| {
+            (0..m.n_faces())
+                .filter(|&f| guard[f].dot(&m.face_cross(f)) <= 0.0)
+                .count()
+        };
+        let folded = turned(&skin);
+        assert!(folded > 0);
+        let (before, after) =
+            unfold_skin(&source, &guard, &mut skin, &guard, &topology, UNFOLD_PASSES);
+        assert_eq!((before, after), (folded, 0));
+        assert_eq!(turned(&skin), 0);
+        // Two rings or more away, untouched; the uniform lift everywhere.
+        for (k, v) in skin.vertices.iter().enumerate() {
+            let (i, j) = ((k % n) as i64, (k / n) as i64);
+            assert!((v.z - 2.0).abs() < 1e-12, "vertex {k}");
+            if (i - 4).abs().max((j - 4).abs()) > 3 {
+                assert_eq!(*v, source.vertices[k] + Vec3::new(0.0, 0.0, 2.0));
+            }
+        }
+    }
+
+    /// A displacement that folds nothing is returned unchanged, bit for bit.
+    #[test]
+    fn nothing_folded_nothing_moved() {
+        let source = crate::geometry::mesh::tests::icosphere(10.0, 2);
+        let topology = source.topology();
+        let guard: Vec<Vec3> = (0..source.n_faces())
+            .map(|f| source.face_cross(f))
+            .collect();
+        let mut skin = source.clone();
+        for v in skin.vertices.iter_mut() {
+            *v = Point::from(v.coords * 1.1 + Vec3::new(0.3, -0.2, 0.1));
+        }
+        let want = skin.clone();
+        assert_eq!(
+            unfold_skin(&source, &guard, &mut skin, &guard, &topology, UNFOLD_PASSES),
+            (0, 0)
+        );
+        assert_eq!(skin.vertices, want.vertices);
+    }
+}
