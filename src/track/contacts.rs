@@ -243,6 +243,10 @@ impl LinkBound {
     }
 }
 
+/// A link's deepest penetration after its branch and bound, and the exact queries it made (the
+/// index in the frame's touching list, what the query found).
+type LinkDeepest = (f64, Vec<(usize, Option<Known>)>);
+
 /// What a skin vertex last learnt exactly about the part: where it was, its signed distance
 /// there (negative inside) and its projection on the part.
 #[derive(Clone, Copy, Debug)]
@@ -665,20 +669,48 @@ pub fn replay_frames(
                 open[l].push((-(tc.signed - tc.slack), e));
             }
             skin_touch.push(tc.vertex);
-            grid.within(&part.mesh.vertices, &tc.projection, radius, &mut under);
         }
-        for (l, cands) in open.iter_mut().enumerate() {
-            cands.sort_by(|a, b| b.0.total_cmp(&a.0));
-            for &(upper, e) in cands.iter() {
-                if upper <= depth[l] {
-                    break;
+        // The part's vertices under the projections, in parallel chunks (each is stamped once
+        // per frame below, so their order does not matter).
+        under.extend(
+            touching
+                .par_chunks(256)
+                .flat_map_iter(|chunk| {
+                    let mut out = Vec::new();
+                    for (tc, _) in chunk {
+                        grid.within(&part.mesh.vertices, &tc.projection, radius, &mut out);
+                    }
+                    out
+                })
+                .collect::<Vec<u32>>(),
+        );
+        // Each link's branch and bound on its own (links are independent), the queries made
+        // kept for the vertices' blocks afterwards.
+        let found: Vec<LinkDeepest> = open
+            .par_iter_mut()
+            .enumerate()
+            .map(|(l, cands)| {
+                let mut d = depth[l];
+                let mut queried = Vec::new();
+                cands.sort_by(|a, b| b.0.total_cmp(&a.0));
+                for &(upper, e) in cands.iter() {
+                    if upper <= d {
+                        break;
+                    }
+                    let k = exact(part, &touching[e].0.at);
+                    if let Some(k) = k {
+                        d = d.max(-k.signed);
+                    }
+                    queried.push((e, k));
                 }
+                (d, queried)
+            })
+            .collect();
+        for (l, (d, queried)) in found.into_iter().enumerate() {
+            depth[l] = d;
+            for (e, k) in queried {
                 let (tc, bi) = touching[e];
-                let k = exact(part, &tc.at);
                 blocks[bi].known[tc.slot as usize] = k;
-                if let Some(k) = k {
-                    depth[l] = depth[l].max(-k.signed);
-                }
             }
         }
         skin_touch.sort_unstable();
