@@ -1595,10 +1595,11 @@ fn pose_page_and_baked_glb(model: &Path, tmp: &Path) {
     assert!(dir.join("fistg.view.html").exists());
 }
 
-/// Every built-in pose of the model folder `model` as a tetrahedral mesh: fewer than one
-/// element in 10,000 inverted (untangled from hundreds in a fist; those left sit where the
-/// skin folds through itself), counted on the nodes read back and in the file's own
-/// signed-volume field alike, and never in silence: a warning gives their count.
+/// Every built-in pose of the model folder `model` as a tetrahedral mesh: no element inverted
+/// (the skinned skin unfolded, then untangled from hundreds in a fist), but for the fist fewer
+/// than one in 10,000 (a sliver where the palmar skin of two phalanges presses into itself at
+/// a crease), counted on the nodes read back and in the file's own signed-volume field alike,
+/// and never in silence: a warning gives their count.
 fn every_builtin_pose_keeps_its_elements_positive(model: &Path, tmp: &Path) {
     let rest = ergohand::io::vtk::read_vtk(&model.join("tet.vtk"), Units::Millimetres)
         .unwrap()
@@ -1618,7 +1619,7 @@ fn every_builtin_pose_keeps_its_elements_positive(model: &Path, tmp: &Path) {
         let inverted = m.inverted_count();
         eprintln!("{name}: {inverted} inverted (the model's tet.vtk: {rest})");
         assert!(
-            inverted * 10_000 < m.n_tets(),
+            inverted == 0 || (name == "fist" && inverted * 10_000 < m.n_tets()),
             "{name}: {inverted} inverted, tet.vtk {rest}"
         );
         assert_eq!(
