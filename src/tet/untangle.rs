@@ -24,8 +24,8 @@ use crate::geometry::{Point, Vec3};
 use nalgebra::Matrix3;
 use serde::Serialize;
 
-/// Runs of [`untangle`] at most: a fresh run starts from what the one before left inverted
-/// (in the posed meshes of the test subjects, one or two were ever needed).
+/// Runs of [`untangle`] at most: a fresh run starts from what the one before left inverted,
+/// and the runs stop as soon as one clears nothing more.
 const RUNS: usize = 4;
 
 /// Options of [`untangle`].
