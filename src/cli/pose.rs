@@ -185,6 +185,13 @@ pub(crate) fn pose_job(
                      relaxed there, {left} left"
                 );
             }
+            if posed.crease_vertices > 0 {
+                log::log!(
+                    voice.info(),
+                    "{} skin vertices kept on their own side of a flexed joint's crease",
+                    posed.crease_vertices
+                );
+            }
             if matches!(ext.as_deref(), Some("vtk") | Some("msh")) {
                 if let Some(w) = inverted_warning(&posed, rig.tets.len()) {
                     warnings.push(format!("{}: {w}", out_file.display()));
@@ -504,6 +511,39 @@ mod tests {
     use crate::anatomy::Side;
     use crate::pose::{named_pose, read_pose_file};
     use crate::template::load_template;
+
+    /// A posed mesh that keeps inverted elements is never silent: the warning gives the count
+    /// and the segments; a clean one gets none.
+    #[test]
+    fn inverted_elements_left_by_untangling_are_warned_with_count_and_segments() {
+        use crate::anatomy::Link;
+        use crate::geometry::TriMesh;
+        use crate::pose::volume_correction::VolumeCorrection;
+        let mut posed = crate::pose::VolumePose {
+            skin: TriMesh {
+                vertices: Vec::new(),
+                faces: Vec::new(),
+            },
+            nodes: Vec::new(),
+            correction: VolumeCorrection {
+                amplitude: Vec::new(),
+                iterations: 0,
+                worst_before: 0.0,
+                worst_after: 0.0,
+            },
+            volume_changes: Vec::new(),
+            untangle: Default::default(),
+            inverted_by_link: Vec::new(),
+            skin_unfolded: (0, 0),
+            crease_vertices: 0,
+        };
+        assert_eq!(inverted_warning(&posed, 100), None);
+        posed.untangle.inverted_after = 3;
+        posed.inverted_by_link = vec![(Link::LMid, 2), (Link::RProx, 1)];
+        let w = inverted_warning(&posed, 100).unwrap();
+        assert!(w.starts_with("3 of 100 tetrahedra are inverted"), "{w}");
+        assert!(w.contains("2 in L_MID, 1 in R_PROX"), "{w}");
+    }
 
     /// `ergohand pose` end to end on a `reconstruct`-style folder holding the template: a built-in
     /// pose to GLB (read back: skinned, joints posed) and a pose file to OBJ (the DQS posed skin),
