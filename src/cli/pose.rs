@@ -185,13 +185,6 @@ pub(crate) fn pose_job(
                      relaxed there, {left} left"
                 );
             }
-            if posed.crease_vertices > 0 {
-                log::log!(
-                    voice.info(),
-                    "{} skin vertices kept on their own side of a flexed joint's crease",
-                    posed.crease_vertices
-                );
-            }
             if matches!(ext.as_deref(), Some("vtk") | Some("msh")) {
                 if let Some(w) = inverted_warning(&posed, rig.tets.len()) {
                     warnings.push(format!("{}: {w}", out_file.display()));
@@ -535,7 +528,6 @@ mod tests {
             untangle: Default::default(),
             inverted_by_link: Vec::new(),
             skin_unfolded: (0, 0),
-            crease_vertices: 0,
         };
         assert_eq!(inverted_warning(&posed, 100), None);
         posed.untangle.inverted_after = 3;

@@ -151,6 +151,9 @@ pub fn resolve_finger_contacts_on<E>(
     let mut cur = pose.clone();
     let (mut pen, mut posed) = measure(&cur)?;
     let depth_before_mm = pen.depth_mm;
+    // The steps linearise each contact alone, so an iteration can push one pair deeper while
+    // it frees another: the least penetrating pose met is the one returned.
+    let mut best = (pen.depth_mm, cur.clone());
     let mut iterations = 0;
     while pen.depth_mm > opts.tolerance_mm && iterations < opts.max_iterations {
         iterations += 1;
@@ -195,7 +198,11 @@ pub fn resolve_finger_contacts_on<E>(
         }
         cur = clamp_pose(&cur).0;
         (pen, posed) = measure(&cur)?;
+        if pen.depth_mm < best.0 {
+            best = (pen.depth_mm, cur.clone());
+        }
     }
+    let (depth_after_mm, cur) = best;
     let changes_deg = Joint::ALL
         .iter()
         .filter_map(|&j| {
@@ -207,7 +214,7 @@ pub fn resolve_finger_contacts_on<E>(
     Ok(Resolved {
         pose: cur,
         depth_before_mm,
-        depth_after_mm: pen.depth_mm,
+        depth_after_mm,
         iterations,
         changes_deg,
     })

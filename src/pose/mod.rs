@@ -11,7 +11,6 @@
 //! * [`gltf`]: the skinned hand as a glTF scene, optionally posed by its joint nodes.
 //! * [`quality`]: self-penetration and segment-volume measures.
 //! * [`volume_correction`]: keeping each finger segment's volume under DQS.
-//! * [`crease_contact`]: the pads of a flexed joint kept from passing through each other.
 //!
 //! # Defaults and why
 //! Weights: the template's, carried by homology ([`WeightMethod::Template`]). They are the
@@ -35,7 +34,6 @@
 //! [`skeleton::forward_kinematics::link_transforms`]: crate::skeleton::forward_kinematics::link_transforms
 
 pub mod contact_resolve;
-pub mod crease_contact;
 pub mod gltf;
 pub mod hand;
 pub mod harmonic_weights;

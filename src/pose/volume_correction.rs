@@ -28,7 +28,6 @@
 //! The same field then moves the skin's vertices, and the mesh's boundary nodes are placed on
 //! that skin ([`super::pose_tet_nodes`]).
 
-use super::crease_contact::separate_creases;
 use super::quality::{
     finger_volume_changes, inverted_by_link, is_finger_segment, segment_volumes, tet_segments,
 };
@@ -150,23 +149,15 @@ impl BulgeBasis {
 /// of a tetrahedral mesh its rest volume: `posed` are the mesh's DQS-skinned nodes, `basis`
 /// the [`BulgeBasis`] at them, `tets` and `labels` the mesh's tetrahedra and their segments
 /// ([`super::quality::tet_segments`]), `rest` the segments' rest volumes
-/// ([`segment_volumes`] of the rest nodes); `finish` is what happens to the swollen nodes
-/// before they are measured (the creases' contact, [`separate_creases`]), so that the volume
-/// kept is that of the mesh written.
+/// ([`segment_volumes`] of the rest nodes).
 pub(crate) fn preserve_segment_volumes(
     posed: &[Point],
     basis: &BulgeBasis,
-    finish: &dyn Fn(&mut [Point]),
     tets: &[[usize; 4]],
     labels: &[usize],
     rest: &[f64],
     opts: &VolumeOptions,
 ) -> VolumeCorrection {
-    let shaped = |a: &[f64]| {
-        let mut x = basis.apply(posed, a);
-        finish(&mut x);
-        x
-    };
     let n = rest.len();
     let kept: Vec<usize> = (0..n)
         .filter(|&l| is_finger_segment(l) && rest[l] > 0.0)
@@ -177,7 +168,7 @@ pub(crate) fn preserve_segment_volumes(
             .fold(0.0, f64::max)
     };
     let mut amplitude = vec![0.0; n];
-    let mut v = segment_volumes(&shaped(&amplitude), tets, labels, n);
+    let mut v = segment_volumes(posed, tets, labels, n);
     let worst_before = worst(&v);
     let mut worst_after = worst_before;
     let mut iterations = 0;
@@ -195,7 +186,7 @@ pub(crate) fn preserve_segment_volumes(
         for (c, &k) in kept.iter().enumerate() {
             let mut probe = amplitude.clone();
             probe[k] += H;
-            let vh = segment_volumes(&shaped(&probe), tets, labels, n);
+            let vh = segment_volumes(&basis.apply(posed, &probe), tets, labels, n);
             for (r, &l) in kept.iter().enumerate() {
                 jac[(r, c)] = (vh[l] - v[l]) / H;
             }
@@ -223,7 +214,7 @@ pub(crate) fn preserve_segment_volumes(
                 .zip(&step)
                 .map(|(a, d)| a + scale * d)
                 .collect();
-            let vt = segment_volumes(&shaped(&trial), tets, labels, n);
+            let vt = segment_volumes(&basis.apply(posed, &trial), tets, labels, n);
             let wt = worst(&vt);
             if wt < worst_after {
                 amplitude = trial;
@@ -282,9 +273,6 @@ pub struct VolumePose {
     /// across a crease), relaxed before the mesh's boundary was placed on the skin, and those
     /// left turned over ([`crate::skin::unfold::unfold_skin`]).
     pub skin_unfolded: (usize, usize),
-    /// Skin vertices kept on their own side of a flexed joint's crease
-    /// ([`super::crease_contact::separate_creases`]).
-    pub crease_vertices: usize,
 }
 
 impl VolumeRig {
@@ -347,13 +335,6 @@ impl VolumeRig {
         let (mut skin, mut nodes, mut correction) =
             self.skin_and_nodes(hand, pose, correct, opts)?;
         let skin_unfolded = unfold_posed_skin(hand, pose, &mut skin);
-        let crease_vertices = separate_creases(
-            &mut skin.vertices,
-            &hand.skin.vertices,
-            &hand.weights,
-            &hand.skeleton,
-            &link_transforms(&hand.skeleton, pose),
-        );
         place_boundary_nodes(&self.binding, &skin, &mut nodes)?;
         // Skinning keeps no element positive where a joint bends hard (the palmar creases of a
         // fist): the interior nodes give way where that happens.
@@ -395,28 +376,18 @@ impl VolumeRig {
             untangle: untangled,
             inverted_by_link,
             skin_unfolded,
-            crease_vertices,
         })
     }
 
-    /// The skin of [`VolumeRig::pose`] with the correction on and the creases' contact, without
-    /// placing the tet mesh's boundary (the skin is all a contact check needs:
-    /// [`super::resolve_finger_contacts_on`]).
+    /// The skin of [`VolumeRig::pose`] with the correction on, without placing the tet mesh's
+    /// boundary (the skin is all a contact check needs: [`super::resolve_finger_contacts_on`]).
     pub fn corrected_skin(
         &self,
         hand: &IndividualHand,
         pose: &Pose,
         opts: &VolumeOptions,
     ) -> Result<Vec<Point>> {
-        let mut skin = self.skin_and_nodes(hand, pose, true, opts)?.0.vertices;
-        separate_creases(
-            &mut skin,
-            &hand.skin.vertices,
-            &hand.weights,
-            &hand.skeleton,
-            &link_transforms(&hand.skeleton, pose),
-        );
-        Ok(skin)
+        Ok(self.skin_and_nodes(hand, pose, true, opts)?.0.vertices)
     }
 
     /// Skin and tet nodes skinned by DQS and, if `correct`, moved by the bulge field; the
@@ -432,17 +403,11 @@ impl VolumeRig {
         let tr = link_transforms(&hand.skeleton, pose);
         let mut skin = hand.posed_skin(pose, Skinning::DualQuaternion);
         let raw = SkinBinding::new(&self.rest_nodes, &self.node_weights, n)?.dual_quaternion(&tr);
-        // The interior follows the skin's crease contact, so that the boundary placed on the
-        // skin later does not close over nodes left on the other side.
-        let creases = |x: &mut [Point]| {
-            separate_creases(x, &self.rest_nodes, &self.node_weights, &hand.skeleton, &tr);
-        };
         let (nodes, correction) = if correct {
             let basis = BulgeBasis::new(&raw, &self.node_weights, &hand.skeleton, &tr);
             let c = preserve_segment_volumes(
                 &raw,
                 &basis,
-                &creases,
                 &self.tets,
                 &self.labels,
                 &self.rest_volumes,
@@ -450,9 +415,7 @@ impl VolumeRig {
             );
             skin.vertices = BulgeBasis::new(&skin.vertices, &hand.weights, &hand.skeleton, &tr)
                 .apply(&skin.vertices, &c.amplitude);
-            let mut nodes = basis.apply(&raw, &c.amplitude);
-            creases(&mut nodes);
-            (nodes, c)
+            (basis.apply(&raw, &c.amplitude), c)
         } else {
             let c = VolumeCorrection {
                 amplitude: vec![0.0; n],
@@ -460,9 +423,7 @@ impl VolumeRig {
                 worst_before: 0.0,
                 worst_after: 0.0,
             };
-            let mut nodes = raw;
-            creases(&mut nodes);
-            (nodes, c)
+            (raw, c)
         };
         Ok((skin, nodes, correction))
     }
