@@ -552,7 +552,24 @@ fn fist_contacts_resolved_on_individual_hands() {
                 );
                 assert!(r.depth_after_mm <= 2.0, "seed {seed} {who}: {r:?}");
                 assert!(largest <= 12.0, "seed {seed} {who}: {:?}", r.changes_deg);
+                // The least penetrating pose met is returned: stopping after fewer rounds is
+                // never less deep, and the depth reported is the returned pose's own.
+                let mut previous = r.depth_before_mm;
+                for rounds in 0..=r.iterations {
+                    let cut = crate::pose::ResolveOptions {
+                        max_iterations: rounds,
+                        ..opts
+                    };
+                    let rk = crate::pose::resolve_finger_contacts(h, &fist, sk, &cut);
+                    assert!(
+                        rk.depth_after_mm <= previous,
+                        "seed {seed} {who}: {rounds} rounds {} mm, fewer {previous} mm",
+                        rk.depth_after_mm
+                    );
+                    previous = rk.depth_after_mm;
+                }
                 let again = crate::pose::resolve_finger_contacts(h, &r.pose, sk, &opts);
+                assert_eq!(again.depth_before_mm, r.depth_after_mm);
                 if r.depth_after_mm <= opts.tolerance_mm {
                     assert!(again.changes_deg.is_empty() && again.iterations == 0);
                 }
