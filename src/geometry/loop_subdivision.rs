@@ -262,32 +262,13 @@ fn sorted(mut row: Vec<(usize, f64)>) -> Vec<(usize, f64)> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::geometry::mesh::tests::cuboid;
+    use crate::geometry::mesh::tests::{cuboid, grid};
 
     /// Regular icosahedron with unit circumradius, outward CCW faces.
     fn icosahedron() -> TriMesh {
         let m = crate::geometry::mesh::tests::icosphere(1.0, 0);
         assert!(m.signed_volume() > 0.0);
         m
-    }
-
-    /// Open planar grid of `k x k` squares on the plane through `origin` spanned by `u`, `v`.
-    fn grid(k: usize, origin: Point, u: Vec3, v: Vec3) -> TriMesh {
-        let mut vertices = Vec::new();
-        for j in 0..=k {
-            for i in 0..=k {
-                vertices.push(origin + u * i as f64 + v * j as f64);
-            }
-        }
-        let id = |i: usize, j: usize| j * (k + 1) + i;
-        let mut faces = Vec::new();
-        for j in 0..k {
-            for i in 0..k {
-                faces.push([id(i, j), id(i + 1, j), id(i + 1, j + 1)]);
-                faces.push([id(i, j), id(i + 1, j + 1), id(i, j + 1)]);
-            }
-        }
-        TriMesh::new(vertices, faces).unwrap()
     }
 
     /// Largest angle (radians) between the normals of two faces sharing an edge.

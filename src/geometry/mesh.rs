@@ -306,6 +306,27 @@ pub(crate) mod tests {
         TriMesh::new(v, f).unwrap()
     }
 
+    /// Open planar grid of `k x k` squares on the plane through `origin` spanned by `u`, `v`:
+    /// vertex `(i, j)` at index `j (k + 1) + i`, each square split along its `(i, j)`-`(i+1, j+1)`
+    /// diagonal.
+    pub fn grid(k: usize, origin: Point, u: Vec3, v: Vec3) -> TriMesh {
+        let mut vertices = Vec::new();
+        for j in 0..=k {
+            for i in 0..=k {
+                vertices.push(origin + u * i as f64 + v * j as f64);
+            }
+        }
+        let id = |i: usize, j: usize| j * (k + 1) + i;
+        let mut faces = Vec::new();
+        for j in 0..k {
+            for i in 0..k {
+                faces.push([id(i, j), id(i + 1, j), id(i + 1, j + 1)]);
+                faces.push([id(i, j), id(i + 1, j + 1), id(i, j + 1)]);
+            }
+        }
+        TriMesh::new(vertices, faces).unwrap()
+    }
+
     /// Icosahedron subdivided `level` times (each triangle into four), projected on a sphere.
     pub fn icosphere(radius: f64, level: usize) -> TriMesh {
         let t = (1.0 + 5f64.sqrt()) / 2.0;

@@ -30,7 +30,7 @@ use super::section_centre::centre_on_cross_section;
 use super::shape_prior::{fold_free_displacement, subject_features, JointLine, ShapePrior};
 use super::simplify::simplify_qem;
 use super::transfer::{bind, transfer};
-use super::unfold::{bone_carried_normals, unfold_skin, UNFOLD_PASSES};
+use super::unfold::{bone_carried_normals, face_turn, unfold_skin, FaceTurn, UNFOLD_PASSES};
 use crate::anatomy::{landmark_names, palm_markers, Dimension, Joint};
 use crate::error::{Error, Result};
 use crate::geometry::{absolute_orientation, Point, TriMesh, Vec3};
@@ -711,17 +711,16 @@ fn centre_ring(
 
 /// Faces of `fitted` whose normal turned more than 90° from `guard` (per face: the template's
 /// face carried by its own bone, of the template face's area), and faces whose area fell below
-/// 1e-6 of the template face's. Measured against the bone's motion rather than the unposed
+/// 1e-6 of the template face's: the fold rule [`face_turn`], which the unfolding relaxes by. Measured against the bone's motion rather than the unposed
 /// template, a finger flexed beyond 90° is not a fold, while a fold of the fit or of the
 /// skinning at a crease still is.
 fn face_check(guard: &[Vec3], fitted: &TriMesh) -> (usize, usize) {
     let (mut inverted, mut degenerate) = (0, 0);
     for (f, a) in guard.iter().enumerate() {
-        let b = fitted.face_cross(f);
-        if b.norm() <= 1e-6 * a.norm() {
-            degenerate += 1;
-        } else if a.dot(&b) < 0.0 {
-            inverted += 1;
+        match face_turn(a, &fitted.face_cross(f)) {
+            FaceTurn::Degenerate => degenerate += 1,
+            FaceTurn::Inverted => inverted += 1,
+            FaceTurn::Kept => {}
         }
     }
     (inverted, degenerate)

@@ -97,10 +97,33 @@ pub fn bone_carried_normals(
         .collect()
 }
 
+/// How a face stands against the direction it must keep facing ([`face_turn`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum FaceTurn {
+    /// Facing within 90° of its guard.
+    Kept,
+    /// Turned over: more than 90° from its guard.
+    Inverted,
+    /// Its area lost: below 1e-6 of the guard's.
+    Degenerate,
+}
+
+/// The fold rule: how a face whose area-weighted normal is `cross` stands against `guard`
+/// (the same face's area-weighted normal as it must keep facing).
+pub fn face_turn(guard: &Vec3, cross: &Vec3) -> FaceTurn {
+    if cross.norm() <= 1e-6 * guard.norm() {
+        FaceTurn::Degenerate
+    } else if guard.dot(cross) < 0.0 {
+        FaceTurn::Inverted
+    } else {
+        FaceTurn::Kept
+    }
+}
+
 /// Whether a face whose area-weighted normal is `cross` has turned over (more than 90°) from
-/// `guard`, or lost its area (below 1e-6 of the guard's).
+/// `guard`, or lost its area (below 1e-6 of the guard's): [`face_turn`] not kept.
 pub fn turned_over(guard: &Vec3, cross: &Vec3) -> bool {
-    cross.norm() <= 1e-6 * guard.norm() || guard.dot(cross) < 0.0
+    face_turn(guard, cross) != FaceTurn::Kept
 }
 
 /// `skin` (homologous to `source`: the same faces) with its displacement from `source` relaxed
@@ -157,21 +180,8 @@ mod tests {
     #[test]
     fn a_pushed_vertex_is_unfolded_and_the_rest_kept() {
         let n = 9;
-        let mut vertices = Vec::new();
-        for j in 0..n {
-            for i in 0..n {
-                vertices.push(Point::new(i as f64, j as f64, 0.0));
-            }
-        }
-        let mut faces = Vec::new();
-        for j in 0..n - 1 {
-            for i in 0..n - 1 {
-                let a = j * n + i;
-                faces.push([a, a + 1, a + n + 1]);
-                faces.push([a, a + n + 1, a + n]);
-            }
-        }
-        let source = TriMesh { vertices, faces };
+        let source =
+            crate::geometry::mesh::tests::grid(n - 1, Point::origin(), Vec3::x(), Vec3::y());
         let topology = source.topology();
         let guard: Vec<Vec3> = (0..source.n_faces())
             .map(|f| source.face_cross(f))
