@@ -186,6 +186,18 @@ pub(crate) fn pose_job(
                 );
             }
             if matches!(ext.as_deref(), Some("vtk") | Some("msh")) {
+                let u = &posed.untangle;
+                if u.inverted_before > 0 {
+                    log::log!(
+                        voice.info(),
+                        "untangled the tetrahedral mesh: {} inverted elements, {} left, {} nodes \
+                         moved (the boundary off the skin by up to {:.2} mm)",
+                        u.inverted_before,
+                        u.inverted_after,
+                        u.nodes_moved,
+                        u.max_boundary_move_mm
+                    );
+                }
                 if let Some(w) = inverted_warning(&posed, rig.tets.len()) {
                     warnings.push(format!("{}: {w}", out_file.display()));
                 }

@@ -22,7 +22,11 @@
 //!   with its skin weights, as its skin will.
 //! * `x_j`: the rotation axis of a 1-DOF joint; it fixes the axial rotation of the 3-DOF joint
 //!   proximal to it (MCP, thumb CMC), which link directions alone leave free.
-//! * `λ` ([`POSTURE_PRIOR`]) keeps an unobservable angle at the template's posture.
+//! * `λ` ([`POSTURE_PRIOR`]) keeps an unobservable angle at the template's posture. A 3-DOF
+//!   joint's axial rotation is observable only through a trusted hinge axis distal to it; with
+//!   none (a small range of motion), its `λ` is [`AXIAL_PRIOR`], else the fit twists the bone
+//!   by tens of degrees to explain a digit that points off the template's sideways (shape, which
+//!   no hinge can follow) and the skinned template folds.
 //!
 //! The angles are then shrunk by [`POSTURE_DEADBAND_DEG`] toward the template's posture.
 //!
@@ -41,6 +45,13 @@ use std::collections::BTreeMap;
 /// residuals): weak enough that a 20° posture is recovered to about 0.1°, strong enough to pin
 /// a degree of freedom no residual sees.
 pub(crate) const POSTURE_PRIOR: f64 = 0.01;
+
+/// The pull toward the template's posture of a 3-DOF joint's axial rotation when no hinge axis
+/// distal to it is trusted (per radian, as [`POSTURE_PRIOR`]): a twist then costs as much as a
+/// misfit of the same angle in one link direction, so the fit no longer buys a few degrees of
+/// direction with a large twist, and a digit whose links point off the template's sideways
+/// keeps that as shape for the landmark fit.
+pub(crate) const AXIAL_PRIOR: f64 = 1.0;
 
 /// Every fitted angle is shrunk toward the template's posture by this much (soft threshold,
 /// `θ ← sign θ · max(0, |θ| − δ)`), degrees: the estimate's noise floor. The link model's centres
@@ -229,6 +240,26 @@ pub fn fit_posture(template: &Skeleton, targets: &PostureTargets) -> Result<Post
         let uc = (targets.reliable[j.index()] && next_ok).then_some(uc);
         goal.push((um, uc, x));
     }
+    // A 3-DOF joint's axial rotation is seen only through a hinge axis distal to it; with none
+    // of them trusted, link directions along a nearly straight digit leave it free, and the fit
+    // can twist the bone by tens of degrees to gain a few degrees of direction elsewhere.
+    let prior: Vec<f64> = unk
+        .iter()
+        .map(|&(j, d)| {
+            let axis_seen = || {
+                j.finger().is_some_and(|f| {
+                    f.joints().iter().any(|&k| {
+                        k.rank() > j.rank() && k.dof() == 1 && targets.reliable[k.index()]
+                    })
+                })
+            };
+            if j.dof() == 3 && d == 2 && !axis_seen() {
+                AXIAL_PRIOR
+            } else {
+                POSTURE_PRIOR
+            }
+        })
+        .collect();
     let residuals = |params: &[f64]| -> DVector<f64> {
         let tf = link_transforms(template, &pose_of(params, &unk));
         let feats = features(template, &targets.template_markers, &tf);
@@ -246,7 +277,7 @@ pub fn fit_posture(template: &Skeleton, targets: &PostureTargets) -> Result<Post
                 _ => {}
             }
         }
-        r.extend(params.iter().map(|a| POSTURE_PRIOR * a));
+        r.extend(params.iter().zip(&prior).map(|(a, w)| w * a));
         DVector::from_vec(r)
     };
 
@@ -405,22 +436,63 @@ mod tests {
             .all(|r| *r < 6.0 * POSTURE_DEADBAND_DEG));
     }
 
+    /// The template's posture fitted to its own skeleton with the subject markers `sm`.
+    fn fit_to_itself(
+        t: &crate::template::TemplateHand,
+        sm: BTreeMap<String, Point>,
+        tm: BTreeMap<String, SkinnedMarker>,
+        reliable: [bool; 16],
+    ) -> PostureFit {
+        fit_posture(
+            &t.skeleton,
+            &PostureTargets {
+                subject: &t.skeleton,
+                subject_markers: sm,
+                template_markers: tm,
+                reliable,
+            },
+        )
+        .unwrap()
+    }
+
+    /// A thumb whose distal phalanx points sideways (shape: its IP and nail markers moved along
+    /// the hinge axes, where no hinge of the thumb can follow), with the thumb's hinge axes
+    /// untrusted as after a small range of motion: the metacarpal is not twisted to explain it.
+    /// With the common prior alone the fit twists it by tens of degrees and flexes the IP to
+    /// swing the nail sideways.
+    #[test]
+    fn an_untrusted_thumb_is_not_twisted_to_explain_its_shape() {
+        let t = load_template(Side::Right).unwrap();
+        let tm = markers(&t);
+        let mut sm: BTreeMap<String, Point> =
+            tm.iter().map(|(n, m)| (n.clone(), m.position)).collect();
+        let side = t.skeleton.joint(Joint::TIp).x();
+        for (n, mm) in [("T_IP", 4.0), ("T_NAIL", 12.0)] {
+            *sm.get_mut(n).unwrap() += side * mm;
+        }
+        let mut reliable = [true; 16];
+        reliable[Joint::TMcp.index()] = false;
+        reliable[Joint::TIp.index()] = false;
+        let fit = fit_to_itself(&t, sm, tm, reliable);
+        let twist = fit.pose.angles[Joint::TCmc.index()][2].to_degrees();
+        let ip = fit.pose.angles[Joint::TIp.index()][0].to_degrees();
+        assert!(twist.abs() < 10.0, "metacarpal twisted {twist:.1}°");
+        assert!(ip.abs() < 10.0, "IP flexed {ip:.1}°");
+        // The fingers, whose markers did not move, stay put.
+        for f in &Finger::ALL[1..] {
+            for j in f.joints() {
+                assert!(fit.pose.angles[j.index()].iter().all(|a| a.abs() < 1e-6));
+            }
+        }
+    }
+
     /// The template fitted to itself stays in its posture.
     #[test]
     fn template_to_itself_is_the_identity() {
         let t = load_template(Side::Left).unwrap();
         let tm = markers(&t);
         let sm = tm.iter().map(|(n, m)| (n.clone(), m.position)).collect();
-        let fit = fit_posture(
-            &t.skeleton,
-            &PostureTargets {
-                subject: &t.skeleton,
-                subject_markers: sm,
-                template_markers: tm,
-                reliable: [true; 16],
-            },
-        )
-        .unwrap();
+        let fit = fit_to_itself(&t, sm, tm, [true; 16]);
         assert!(fit.pose.angles.iter().flatten().all(|a| a.abs() < 1e-9));
     }
 }

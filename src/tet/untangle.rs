@@ -15,7 +15,10 @@
 //! node's problem is a convex piecewise quadratic solved exactly by a few Newton steps on its
 //! active set. The small proximal term `μ` keeps a node from drifting once its star is valid.
 //! Sweeps start at the free nodes of the inverted elements and widen to their neighbours when
-//! an element stays inverted (its own nodes are boxed in by the held boundary).
+//! an element stays inverted (its own nodes are boxed in by the held boundary). One node at a
+//! time stalls where no position of a node is valid with its neighbours where they are (two
+//! nodes collapsed onto each other at a crease): what is left is then solved for all the nodes
+//! within one, two and three rings of it at once, by Gauss-Newton on the same cost.
 //!
 //! Nothing moves in a mesh without inverted elements, so a valid mesh is returned unchanged.
 
@@ -242,6 +245,24 @@ pub fn untangle(
                 }
                 around(&bad, &mut active, &mut reach);
             }
+            // One node at a time stalls where no position of a node is valid with its neighbours
+            // where they are (two nodes collapsed onto each other in a crease): the nodes around
+            // what is left move together, over a widening neighbourhood, before the boundary is
+            // given more reach.
+            for rings in 1..=JOINT_RINGS {
+                if bad.is_empty() {
+                    break;
+                }
+                let before = bad.len();
+                for group in touching_groups(tets, &star, &bad) {
+                    untangle_jointly(nodes, tets, &star, &group, &target, &reach, &start, rings);
+                }
+                bad = inverted(nodes);
+                stats.sweeps += 1;
+                if bad.len() > before {
+                    break;
+                }
+            }
         }
         // What the penalty's compromises leave inverted (a sliver flattened between its
         // neighbours) is polished by raising the star's smallest volume itself, one node at a time,
@@ -282,6 +303,192 @@ pub fn untangle(
         }
     }
     stats
+}
+
+/// Rings of neighbours around what stays inverted that [`untangle_jointly`] widens to at most.
+const JOINT_RINGS: usize = 3;
+
+/// Most free nodes [`untangle_jointly`] moves together (its normal equations are dense): a
+/// few slivers' neighbourhoods, not a fold of hundreds of elements, which the node-by-node
+/// sweeps handle.
+const JOINT_MAX_NODES: usize = 250;
+
+/// The elements `bad` grouped by shared nodes (each group a connected cluster).
+fn touching_groups(tets: &[[usize; 4]], star: &[Vec<usize>], bad: &[usize]) -> Vec<Vec<usize>> {
+    let is_bad: std::collections::HashSet<usize> = bad.iter().copied().collect();
+    let mut seen = std::collections::HashSet::new();
+    let mut groups = Vec::new();
+    for &t in bad {
+        if !seen.insert(t) {
+            continue;
+        }
+        let mut group = vec![t];
+        let mut k = 0;
+        while k < group.len() {
+            let e = group[k];
+            k += 1;
+            for &u in star_of_element(tets, star, e).iter() {
+                if is_bad.contains(&u) && seen.insert(u) {
+                    group.push(u);
+                }
+            }
+        }
+        groups.push(group);
+    }
+    groups
+}
+
+/// The elements sharing a node with element `t` (itself included).
+fn star_of_element(tets: &[[usize; 4]], star: &[Vec<usize>], t: usize) -> Vec<usize> {
+    tets[t]
+        .iter()
+        .flat_map(|&v| star[v].iter().copied())
+        .collect()
+}
+
+/// The problem of the module documentation for all free nodes within `rings` rings of the
+/// elements `bad` at once (the volume is linear in each corner, so the residuals' Jacobian is
+/// the corners' volume gradients), by Gauss-Newton steps with a halving line search on the true
+/// cost, each node kept within its reach of `start`. The region is left as it was unless it ends
+/// with fewer inverted elements, or as many and a larger smallest volume.
+#[allow(clippy::too_many_arguments)]
+fn untangle_jointly(
+    nodes: &mut [Point],
+    tets: &[[usize; 4]],
+    star: &[Vec<usize>],
+    bad: &[usize],
+    target: &[f64],
+    reach: &[f64],
+    start: &[Point],
+    rings: usize,
+) {
+    let n = nodes.len();
+    let mut in_region = vec![false; n];
+    let mut frontier: Vec<usize> = bad.iter().flat_map(|&t| tets[t]).collect();
+    for &v in &frontier {
+        in_region[v] = true;
+    }
+    for _ in 0..rings {
+        let mut next = Vec::new();
+        for &v in &frontier {
+            for &u in star[v].iter().flat_map(|&t| tets[t].iter()) {
+                if !in_region[u] {
+                    in_region[u] = true;
+                    next.push(u);
+                }
+            }
+        }
+        frontier = next;
+    }
+    let free: Vec<usize> = (0..n).filter(|&v| in_region[v] && reach[v] > 0.0).collect();
+    if free.is_empty() || free.len() > JOINT_MAX_NODES {
+        return;
+    }
+    let mut column = vec![usize::MAX; n];
+    for (k, &v) in free.iter().enumerate() {
+        column[v] = k;
+    }
+    let mut elems: Vec<usize> = free.iter().flat_map(|&v| star[v].iter().copied()).collect();
+    elems.sort_unstable();
+    elems.dedup();
+    let x0: Vec<Point> = free.iter().map(|&v| nodes[v]).collect();
+    let score = |nodes: &[Point]| -> (usize, f64) {
+        let vols = elems.iter().map(|&t| signed_volume(nodes, &tets[t]));
+        (
+            vols.clone().filter(|v| *v <= 0.0).count(),
+            vols.fold(f64::INFINITY, f64::min),
+        )
+    };
+    let entry = score(nodes);
+    let scale = elems
+        .iter()
+        .map(|&t| volume_gradient(nodes, &tets[t], 0).norm_squared())
+        .sum::<f64>()
+        / elems.len() as f64;
+    let mu = 1e-3 * scale;
+    let cost = |nodes: &[Point]| -> f64 {
+        elems
+            .iter()
+            .map(|&t| {
+                (target[t] - signed_volume(nodes, &tets[t]))
+                    .max(0.0)
+                    .powi(2)
+            })
+            .sum::<f64>()
+            + mu * free
+                .iter()
+                .zip(&x0)
+                .map(|(&v, p)| (nodes[v] - p).norm_squared())
+                .sum::<f64>()
+    };
+    let m = 3 * free.len();
+    for _ in 0..50 {
+        let mut h = nalgebra::DMatrix::<f64>::identity(m, m) * (2.0 * mu);
+        let mut g = nalgebra::DVector::<f64>::zeros(m);
+        for (k, &v) in free.iter().enumerate() {
+            let d = nodes[v] - x0[k];
+            for a in 0..3 {
+                g[3 * k + a] += 2.0 * mu * d[a];
+            }
+        }
+        let mut active = 0;
+        for &t in &elems {
+            let r = target[t] - signed_volume(nodes, &tets[t]);
+            if r <= 0.0 {
+                continue;
+            }
+            active += 1;
+            let grads: Vec<(usize, Vec3)> = (0..4)
+                .filter(|&c| column[tets[t][c]] != usize::MAX)
+                .map(|c| (column[tets[t][c]], volume_gradient(nodes, &tets[t], c)))
+                .collect();
+            for &(i, gi) in &grads {
+                for a in 0..3 {
+                    g[3 * i + a] -= 2.0 * r * gi[a];
+                }
+                for &(j, gj) in &grads {
+                    for a in 0..3 {
+                        for b in 0..3 {
+                            h[(3 * i + a, 3 * j + b)] += 2.0 * gi[a] * gj[b];
+                        }
+                    }
+                }
+            }
+        }
+        if active == 0 {
+            break;
+        }
+        let Some(step) = h.cholesky().map(|c| c.solve(&(-&g))) else {
+            break;
+        };
+        let f = cost(nodes);
+        let here: Vec<Point> = free.iter().map(|&v| nodes[v]).collect();
+        let mut s = 1.0;
+        let mut moved = false;
+        while s > 1e-4 {
+            for (k, &v) in free.iter().enumerate() {
+                let y =
+                    here[k].coords + Vec3::new(step[3 * k], step[3 * k + 1], step[3 * k + 2]) * s;
+                nodes[v] = Point::from(within_reach(y, start[v].coords, reach[v]));
+            }
+            if cost(nodes) < f {
+                moved = true;
+                break;
+            }
+            s *= 0.5;
+        }
+        if !moved {
+            for (k, &v) in free.iter().enumerate() {
+                nodes[v] = here[k];
+            }
+            break;
+        }
+    }
+    if !better(score(nodes), entry) {
+        for (k, &v) in free.iter().enumerate() {
+            nodes[v] = x0[k];
+        }
+    }
 }
 
 /// One node's problem of the module documentation, solved by Newton steps on its active set.
@@ -454,21 +661,74 @@ mod tests {
         }
     }
 
-    /// Eight tetrahedra fanned around one free node inside a held octahedron: the node pushed
-    /// outside the octahedron inverts some of them, and untangling brings it back inside with
-    /// every element above its target; a valid mesh is left untouched.
-    #[test]
-    fn a_free_node_pushed_out_of_its_cage_comes_back() {
-        // Octahedron vertices 0..6, centre 6.
-        let mut nodes = vec![
+    /// The six vertices of the unit octahedron, on the axes.
+    fn octahedron() -> Vec<Point> {
+        vec![
             Point::new(1.0, 0.0, 0.0),
             Point::new(-1.0, 0.0, 0.0),
             Point::new(0.0, 1.0, 0.0),
             Point::new(0.0, -1.0, 0.0),
             Point::new(0.0, 0.0, 1.0),
             Point::new(0.0, 0.0, -1.0),
-            Point::new(0.0, 0.0, 0.0),
-        ];
+        ]
+    }
+
+    /// A held octahedron around two free nodes on its axis (a fan of four elements from each to
+    /// its cap, four joining them to the equator), the two nodes swapped, so that the four
+    /// joining elements are inverted: moved together, the two come back in order, every element
+    /// positive, the held nodes where they were.
+    #[test]
+    fn two_swapped_nodes_are_untangled_together() {
+        let mut nodes = octahedron();
+        nodes.extend([Point::new(0.0, 0.0, 0.3), Point::new(0.0, 0.0, -0.3)]);
+        let equator = [[0, 2], [2, 1], [1, 3], [3, 0]];
+        let mut tets: Vec<[usize; 4]> = Vec::new();
+        for [a, b] in equator {
+            tets.push([6, a, b, 4]);
+            tets.push([7, a, b, 5]);
+            tets.push([6, 7, a, b]);
+        }
+        for t in tets.iter_mut() {
+            if signed_volume(&nodes, t) < 0.0 {
+                t.swap(2, 3);
+            }
+        }
+        let reference: Vec<f64> = tets.iter().map(|t| signed_volume(&nodes, t)).collect();
+        assert!(reference.iter().all(|v| *v > 0.0));
+        let held = nodes[..6].to_vec();
+        nodes.swap(6, 7);
+        let bad: Vec<usize> = (0..tets.len())
+            .filter(|&t| signed_volume(&nodes, &tets[t]) <= 0.0)
+            .collect();
+        assert_eq!(bad.len(), 4, "the four joining elements");
+        let mut star: Vec<Vec<usize>> = vec![Vec::new(); nodes.len()];
+        for (t, tet) in tets.iter().enumerate() {
+            for &v in tet {
+                star[v].push(t);
+            }
+        }
+        let target: Vec<f64> = reference.iter().map(|v| 0.1 * v).collect();
+        let reach = [0.0, 0.0, 0.0, 0.0, 0.0, 0.0, f64::INFINITY, f64::INFINITY];
+        let start = nodes.clone();
+        untangle_jointly(&mut nodes, &tets, &star, &bad, &target, &reach, &start, 1);
+        for (t, tet) in tets.iter().enumerate() {
+            assert!(
+                signed_volume(&nodes, tet) > 0.0,
+                "element {t} still inverted"
+            );
+        }
+        assert_eq!(nodes[..6], held[..]);
+        assert!(nodes[6].z > nodes[7].z, "{} {}", nodes[6], nodes[7]);
+    }
+
+    /// Eight tetrahedra fanned around one free node inside a held octahedron: the node pushed
+    /// outside the octahedron inverts some of them, and untangling brings it back inside with
+    /// every element above its target; a valid mesh is left untouched.
+    #[test]
+    fn a_free_node_pushed_out_of_its_cage_comes_back() {
+        // Octahedron vertices 0..6, centre 6.
+        let mut nodes = octahedron();
+        nodes.push(Point::origin());
         let faces = [
             [0, 2, 4],
             [2, 1, 4],
