@@ -591,7 +591,10 @@ pub fn fit_skin(
             ));
         }
     }
-    warnings.extend(caliper_warnings(&caliper_residuals_mm));
+    warnings.extend(caliper_warnings(
+        &caliper_residuals_mm,
+        &dimension_residuals_mm,
+    ));
     if inverted_faces > 0 || degenerate_faces > 0 {
         warnings.push(format!(
             "skin: {inverted_faces} inverted and {degenerate_faces} degenerate faces in the \
@@ -726,13 +729,24 @@ fn face_check(guard: &[Vec3], fitted: &TriMesh) -> (usize, usize) {
     (inverted, degenerate)
 }
 
+/// A caliper pair moved further than this off its given value by the caliper rounds is forced
+/// (see [`caliper_warnings`]), mm.
+pub(crate) const PAIR_FORCED_MM: f64 = 5.0;
+
 /// The warnings of the calipers read on the fitted skin (`residuals`: reading minus given value,
 /// per dimension). A caliper is blamed by name only when it is the outlier among the calipers:
 /// its miss is beyond 0.5 mm and further from the calipers' median miss than four robust
 /// standard deviations (1.4826 times the median absolute deviation), and at least 2 mm. Misses
 /// spread over many calipers are the fit's, not a caliper's (a hand the template cannot follow
-/// closely), and are said once, without blaming the values.
-pub(crate) fn caliper_warnings(residuals: &BTreeMap<String, f64>) -> Vec<String> {
+/// closely), and are said once, without blaming the values. A blamed caliper whose template
+/// vertex pair the caliper rounds moved far off the given value (`pair_residuals`: the pair's
+/// length minus the given value; more than [`PAIR_FORCED_MM`] and twice the reading's miss) may
+/// instead be one the skin cannot follow (the section reads a part of the template the pair
+/// does not move), and the warning says so.
+pub(crate) fn caliper_warnings(
+    residuals: &BTreeMap<String, f64>,
+    pair_residuals: &BTreeMap<String, f64>,
+) -> Vec<String> {
     let m = median(&mut residuals.values().copied().collect::<Vec<f64>>());
     let sd = 1.4826
         * median(
@@ -749,11 +763,23 @@ pub(crate) fn caliper_warnings(residuals: &BTreeMap<String, f64>) -> Vec<String>
             continue;
         }
         if (r - m).abs() > limit {
-            out.push(format!(
-                "skin: a caliper on the fitted skin reads {n} {r:+.2} mm off the given value, \
-                 where the other calipers miss by {m:+.2} mm in the median: check the caliper \
-                 value"
-            ));
+            let forced = pair_residuals
+                .get(n)
+                .filter(|p| p.abs() > PAIR_FORCED_MM && p.abs() > 2.0 * r.abs());
+            out.push(match forced {
+                None => format!(
+                    "skin: a caliper on the fitted skin reads {n} {r:+.2} mm off the given value, \
+                     where the other calipers miss by {m:+.2} mm in the median: check the \
+                     caliper value"
+                ),
+                Some(p) => format!(
+                    "skin: a caliper on the fitted skin reads {n} {r:+.2} mm off the given value, \
+                     where the other calipers miss by {m:+.2} mm in the median, although the \
+                     caliper rounds moved its template vertex pair {p:+.1} mm off that value: \
+                     check the caliper value; if it is right, the skin cannot follow the pair \
+                     there (the template's section does not reach this hand's shape)"
+                ),
+            });
         } else {
             spread.push((n, r));
         }
@@ -803,16 +829,29 @@ mod tests {
             ("hand_length", 0.1),
             ("hand_breadth", -0.2),
         ]);
-        let w = caliper_warnings(&spread);
+        let none = BTreeMap::new();
+        let w = caliper_warnings(&spread, &none);
         assert_eq!(w.len(), 2, "{w:#?}");
         assert!(w[0].contains("finger1_breadth_proximal") && w[0].contains("check the caliper"));
         assert!(w[1].contains("13 of 16") && !w[1].contains("check the caliper"));
         let good = misses(&[("a", 0.1), ("b", -0.3), ("c", 0.45), ("d", 0.0)]);
-        assert!(caliper_warnings(&good).is_empty());
+        assert!(caliper_warnings(&good, &none).is_empty());
         let one_wrong = misses(&[("a", 0.1), ("b", -0.3), ("c", 6.0), ("d", 0.0), ("e", 0.2)]);
-        let w = caliper_warnings(&one_wrong);
+        let w = caliper_warnings(&one_wrong, &none);
         assert_eq!(w.len(), 1, "{w:#?}");
         assert!(w[0].contains(" c +6.00 mm") && w[0].contains("check the caliper"));
+        assert!(!w[0].contains("cannot follow"), "{w:#?}");
+        // The same miss after the rounds shortened its pair by 32 mm (a wrist section that reads
+        // the palm): the skin may be what does not follow, and the warning says so; a pair moved
+        // about as far as the miss is the caliper's alone.
+        let moved = |p: f64| misses(&[("c", p)]);
+        let w = caliper_warnings(&one_wrong, &moved(-32.0));
+        assert!(
+            w[0].contains("pair -32.0 mm") && w[0].contains("cannot follow"),
+            "{w:#?}"
+        );
+        let w = caliper_warnings(&one_wrong, &moved(7.0));
+        assert!(!w[0].contains("cannot follow"), "{w:#?}");
     }
 
     /// A simulated subject captured with the error model `err`, its hand's template and its
