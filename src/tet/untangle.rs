@@ -108,11 +108,26 @@ fn star_volumes(
         .collect()
 }
 
-/// The star of [`star_volumes`] with its node at `x`: (inverted count, smallest volume).
-fn star_score(lin: &[(Vec3, f64)], x: &Vec3) -> (usize, f64) {
-    let vols = lin.iter().map(|(g, c)| g.dot(x) + c);
+/// Signed volumes scored as [`better`] compares them: (inverted count, smallest volume).
+fn volume_score(vols: impl Iterator<Item = f64> + Clone) -> (usize, f64) {
     let bad = vols.clone().filter(|v| *v <= 0.0).count();
     (bad, vols.fold(f64::INFINITY, f64::min))
+}
+
+/// The star of [`star_volumes`] with its node at `x`: its [`volume_score`].
+fn star_score(lin: &[(Vec3, f64)], x: &Vec3) -> (usize, f64) {
+    volume_score(lin.iter().map(|(g, c)| g.dot(x) + c))
+}
+
+/// Node -> the elements around it, for the `n` nodes of the mesh of `tets`.
+fn node_stars(n: usize, tets: &[[usize; 4]]) -> Vec<Vec<usize>> {
+    let mut star: Vec<Vec<usize>> = vec![Vec::new(); n];
+    for (t, tet) in tets.iter().enumerate() {
+        for &v in tet {
+            star[v].push(t);
+        }
+    }
+    star
 }
 
 /// Whether score `a` is better than `b`: fewer inverted, or as many and a larger smallest volume.
@@ -165,13 +180,7 @@ pub fn untangle(
     if bad.is_empty() {
         return stats;
     }
-    // Node -> elements around it.
-    let mut star: Vec<Vec<usize>> = vec![Vec::new(); n];
-    for (t, tet) in tets.iter().enumerate() {
-        for &v in tet {
-            star[v].push(t);
-        }
-    }
+    let star = node_stars(n, tets);
     let target: Vec<f64> = reference
         .iter()
         .map(|v| opts.target_fraction * v.abs())
@@ -327,7 +336,7 @@ fn touching_groups(tets: &[[usize; 4]], star: &[Vec<usize>], bad: &[usize]) -> V
         while k < group.len() {
             let e = group[k];
             k += 1;
-            for &u in star_of_element(tets, star, e).iter() {
+            for u in tets[e].iter().flat_map(|&v| star[v].iter().copied()) {
                 if is_bad.contains(&u) && seen.insert(u) {
                     group.push(u);
                 }
@@ -336,14 +345,6 @@ fn touching_groups(tets: &[[usize; 4]], star: &[Vec<usize>], bad: &[usize]) -> V
         groups.push(group);
     }
     groups
-}
-
-/// The elements sharing a node with element `t` (itself included).
-fn star_of_element(tets: &[[usize; 4]], star: &[Vec<usize>], t: usize) -> Vec<usize> {
-    tets[t]
-        .iter()
-        .flat_map(|&v| star[v].iter().copied())
-        .collect()
 }
 
 /// The problem of the module documentation for all free nodes within `rings` rings of the
@@ -392,13 +393,8 @@ fn untangle_jointly(
     elems.sort_unstable();
     elems.dedup();
     let x0: Vec<Point> = free.iter().map(|&v| nodes[v]).collect();
-    let score = |nodes: &[Point]| -> (usize, f64) {
-        let vols = elems.iter().map(|&t| signed_volume(nodes, &tets[t]));
-        (
-            vols.clone().filter(|v| *v <= 0.0).count(),
-            vols.fold(f64::INFINITY, f64::min),
-        )
-    };
+    let score =
+        |nodes: &[Point]| volume_score(elems.iter().map(|&t| signed_volume(nodes, &tets[t])));
     let entry = score(nodes);
     let scale = elems
         .iter()
@@ -701,12 +697,7 @@ mod tests {
             .filter(|&t| signed_volume(&nodes, &tets[t]) <= 0.0)
             .collect();
         assert_eq!(bad.len(), 4, "the four joining elements");
-        let mut star: Vec<Vec<usize>> = vec![Vec::new(); nodes.len()];
-        for (t, tet) in tets.iter().enumerate() {
-            for &v in tet {
-                star[v].push(t);
-            }
-        }
+        let star = node_stars(nodes.len(), &tets);
         let target: Vec<f64> = reference.iter().map(|v| 0.1 * v).collect();
         let reach = [0.0, 0.0, 0.0, 0.0, 0.0, 0.0, f64::INFINITY, f64::INFINITY];
         let start = nodes.clone();
