@@ -159,6 +159,12 @@ impl Joint {
         NAMES[self as usize]
     }
 
+    /// The kind of joint, its name without the digit: `MCP`, `PIP`, `DIP`, the thumb's `CMC`,
+    /// `MCP`, `IP`, and `WRIST`.
+    pub fn kind(self) -> &'static str {
+        self.name().rsplit('_').next().unwrap_or("")
+    }
+
     /// Parse a spec name.
     pub fn from_name(s: &str) -> Option<Joint> {
         Joint::ALL.into_iter().find(|j| j.name() == s)
@@ -389,6 +395,22 @@ impl Dimension {
         Dimension::all().into_iter().find(|d| d.name() == s)
     }
 
+    /// The joint whose cross-section a finger dimension is measured at (the PIP, the thumb's
+    /// IP, the DIP); `None` for the wrist and hand dimensions.
+    pub fn section_joint(self) -> Option<Joint> {
+        match self {
+            Dimension::BreadthProximal(f) | Dimension::ThicknessProximal(f) => {
+                Some(if f == Finger::Thumb {
+                    f.joints()[2]
+                } else {
+                    f.joints()[1]
+                })
+            }
+            Dimension::BreadthDistal(f) | Dimension::ThicknessDistal(f) => Some(f.joints()[2]),
+            _ => None,
+        }
+    }
+
     /// Plausible range for an adult hand, mm, used to reject absurd inputs (a value in metres or
     /// inches, a typo). Generous bounds around the extremes of published hand anthropometry
     /// (e.g. Kouchi's AIST hand database, Greiner 1991): a value outside is not a hand.
@@ -455,6 +477,30 @@ mod tests {
             assert_eq!(Dimension::from_name(&d.name()), Some(d));
         }
         assert_eq!(Dimension::from_name("finger1_breadth_distal"), None);
+        assert_eq!(
+            Dimension::ThicknessProximal(Finger::Thumb).section_joint(),
+            Some(Joint::TIp)
+        );
+        assert_eq!(
+            Dimension::BreadthProximal(Finger::Ring).section_joint(),
+            Some(Joint::RPip)
+        );
+        assert_eq!(
+            Dimension::ThicknessDistal(Finger::Little).section_joint(),
+            Some(Joint::LDip)
+        );
+        assert_eq!(Dimension::WristThickness.section_joint(), None);
+        let kinds: Vec<&str> = [
+            Joint::Wrist,
+            Joint::TCmc,
+            Joint::TIp,
+            Joint::MPip,
+            Joint::LDip,
+        ]
+        .iter()
+        .map(|j| j.kind())
+        .collect();
+        assert_eq!(kinds, ["WRIST", "CMC", "IP", "PIP", "DIP"]);
         assert_eq!(landmark_names().len(), 4 + 16 + 5 + 6);
     }
 }

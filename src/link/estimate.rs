@@ -606,6 +606,7 @@ fn estimate_local(
             centre_sd_mm: None,
             level_sd_mm: level_sd,
             level_cues: BTreeMap::new(),
+            depth_cue: None,
             warnings: warnings.clone(),
         },
         tracks,

@@ -16,7 +16,8 @@
 //!   angles (Camomilla et al. 2013, Cappello et al. 1997/2005), beyond the paper.
 //! * [`registration`]: equation 1, the per-frame registration of the parent's markers.
 //! * [`estimate`]: the whole link model of a subject from its trials, with diagnostics.
-//! * [`level_cues`]: a hinge's level along its axis weighted over several cues.
+//! * [`level_cues`]: a hinge's level along its axis weighted over several cues, and its depth
+//!   from the motion and the skin.
 //! * [`model`]: the link model as data, and `link_model.json`.
 //! * [`anthropometry`]: the link model's proportions against published anthropometry (a
 //!   plausibility gate).

@@ -4,7 +4,7 @@
 //! [`super::estimate`] makes it from the trials; section 3.6 moves its hinges' centres onto the
 //! skin ([`LinkModel::with_skin_centres`]).
 
-use super::level_cues::cue_weights;
+use super::level_cues::{cue_weights, depth_weight};
 use crate::anatomy::{Finger, Joint, Side};
 use crate::error::Result;
 use crate::geometry::{Point, Vec3};
@@ -40,6 +40,15 @@ pub struct LevelCueOffset {
     /// The cue's level minus the centre's, along the axis, mm.
     pub offset_mm: f64,
     /// Its weight in the centre's level.
+    pub weight: f64,
+}
+
+/// A hinge's depth from the skin in `link_model.json`.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct DepthCueOffset {
+    /// The skin's depth minus the centre's, along the joint frame's y (dorsal), mm.
+    pub offset_mm: f64,
+    /// Its weight in the centre's depth (the motion's is one minus it).
     pub weight: f64,
 }
 
@@ -102,6 +111,10 @@ pub struct JointDiagnostics {
     /// ([`cue_weights`]).
     #[serde(skip_serializing_if = "BTreeMap::is_empty")]
     pub level_cues: BTreeMap<String, LevelCueOffset>,
+    /// 1-DOF joints whose thickness a caliper gives, after the skin stage: the skin's depth
+    /// of the centre and its weight ([`depth_weight`]).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub depth_cue: Option<DepthCueOffset>,
     /// Warnings about this joint.
     pub warnings: Vec<String>,
 }
@@ -197,11 +210,20 @@ impl LinkModel {
     /// placement, the skin fit), so their weighted mean is closer than any of them (README,
     /// "Link model"). The skin stage's shift is recorded in the diagnostics
     /// (`centre_shift_on_skin_mm`) and the centre from motion alone kept among the alternatives
-    /// as `motion`. The skeleton becomes `skeleton` with these centres.
+    /// as `motion`.
+    ///
+    /// `depths` (from [`crate::skin::section_centre::depth_offsets`], by joint name) are the
+    /// skin's depths of the hinges whose thickness a caliper fixed, relative to `skeleton`'s
+    /// centres along their frames' y: each such centre moves that way by the skin's weight of
+    /// its depth, one weight per hand from all of them ([`depth_weight`]), so that a plate's
+    /// slide along its bone, which the motion reads as a deeper or shallower joint, is held by
+    /// the finger's thickness (diagnostics `depth_cue`). Frames keep their axes, as along the
+    /// axis. The skeleton becomes `skeleton` with these centres.
     pub fn with_skin_centres(
         mut self,
         skeleton: &Skeleton,
         shifts: &BTreeMap<String, f64>,
+        depths: &BTreeMap<String, f64>,
     ) -> Self {
         let mut skeleton = skeleton.clone();
         let moved: Vec<usize> = (0..self.joints.len())
@@ -270,6 +292,27 @@ impl LinkModel {
             if !var.is_empty() {
                 let sd = w.iter().zip(&var).map(|(w, v)| w * w * v).sum::<f64>();
                 e.diagnostics.level_sd_mm = Some(sd.sqrt());
+            }
+        }
+        // The depth: one weight for the hand's hinges that have both depths.
+        let deep: Vec<(usize, &'static str, f64)> = (0..self.joints.len())
+            .filter_map(|k| {
+                let e = &self.joints[k];
+                let d = *depths.get(e.joint.name())?;
+                (e.axis.is_some() && d.is_finite()).then(|| (k, e.joint.kind(), d))
+            })
+            .collect();
+        let cues: Vec<(&str, f64)> = deep.iter().map(|&(_, kind, d)| (kind, d)).collect();
+        if let Some(w) = depth_weight(&cues) {
+            for &(k, _, d) in &deep {
+                let e = &mut self.joints[k];
+                let y = skeleton.joint(e.joint).y();
+                e.centre += y * (w.skin * d);
+                skeleton.joints[e.joint.index()].centre = e.centre;
+                e.diagnostics.depth_cue = Some(DepthCueOffset {
+                    offset_mm: d * (1.0 - w.skin),
+                    weight: w.skin,
+                });
             }
         }
         self.skeleton = skeleton;

@@ -87,23 +87,20 @@ pub fn measure_dimensions(
         hand_thickness_mc3(skin, skeleton),
     );
     for f in Finger::ALL {
-        let proximal = if f == Finger::Thumb {
-            f.joints()[2]
-        } else {
-            f.joints()[1]
-        };
-        pair(
-            &mut out,
-            finger_joint_section(skin, skeleton, proximal),
+        let mut sections = vec![(
             Dimension::BreadthProximal(f),
             Dimension::ThicknessProximal(f),
-        );
+        )];
         if f != Finger::Thumb {
+            sections.push((Dimension::BreadthDistal(f), Dimension::ThicknessDistal(f)));
+        }
+        for (breadth, thickness) in sections {
+            let j = breadth.section_joint().expect("a finger dimension");
             pair(
                 &mut out,
-                finger_joint_section(skin, skeleton, f.joints()[2]),
-                Dimension::BreadthDistal(f),
-                Dimension::ThicknessDistal(f),
+                finger_joint_section(skin, skeleton, j),
+                breadth,
+                thickness,
             );
         }
     }

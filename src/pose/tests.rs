@@ -77,10 +77,8 @@ fn reconstructed_hand(s: &crate::synth::SyntheticSubject, method: WeightMethod) 
         &crate::skin::pipeline::SkinOptions::default(),
     )
     .unwrap();
-    let pairs = crate::skin::section_centre::edge_pairs(&t).unwrap();
-    let (centred, shifts) =
-        crate::skin::section_centre::centre_on_cross_section(&model.skeleton, &fit.high, &pairs);
-    let model = model.with_skin_centres(&centred, &shifts);
+    // The link model as `reconstruct` writes it (section 3.6 applied on the final skin).
+    let model = fit.link_model.expect("a link model was given");
     IndividualHand::from_skin(&t, fit.high, model.skeleton, method).unwrap()
 }
 
