@@ -478,12 +478,15 @@ pub fn fit_skin(
         &owners,
     );
     let measure_skeleton = &aimed;
-    // The hinges whose depth the skin gives: those whose thickness a caliper fixed, the
-    // template's centre carried by the ring of skin around it.
-    // They move a centre within its section's plane (up to a tilt of a degree), so the caliper
-    // rounds measure without them (each round's depth would move the rounds' path, not what a
-    // caliper reads) and the final skin's are applied once, then measured with.
-    let rings = depth_rings(&posed, &owners, &posed_skeleton, dimensions.keys());
+    // The hinges whose depth the skin gives (with a link model to weigh it against): those
+    // whose thickness a caliper fixed, the template's centre carried by the ring of skin around
+    // it. A depth moves a centre within its section's plane (up to a tilt of a degree), so the
+    // caliper rounds measure without them (each round's depths would move the rounds' path,
+    // not what a caliper reads) and the kept skin's are applied once, then measured with.
+    let rings = match full_link_model {
+        Some(_) => depth_rings(&posed, &owners, &posed_skeleton, dimensions.keys()),
+        None => BTreeMap::new(),
+    };
     let section_3_6 =
         |high: &TriMesh, depth: bool| -> (Option<LinkModel>, Skeleton, BTreeMap<String, f64>) {
             let (centred, shifts) = centre_on_cross_section(measure_skeleton, high, &edge_pairs);

@@ -154,7 +154,6 @@ pub fn depth_rings<'a>(
             )
         })
         .filter_map(|d| d.section_joint())
-        .filter(|j| j.dof() == 1)
         .filter_map(|j| centre_ring(mesh, owner, skeleton, j).map(|r| (j, r)))
         .collect()
 }
