@@ -138,8 +138,13 @@ pub struct GraspReport {
     /// the squeezed one.
     pub squeeze: autograsp::Squeeze,
     /// Placements of the search closed and hold-tested: its best, then its runners-up while the
-    /// hold test failed (0 for a given approach).
+    /// hold test failed; likewise the positions of a given approach that slides
+    /// (`grasp.slide_mm`); 0 for a given approach that does not.
     pub placement_tries: usize,
+    /// How far the hand slid along its palm from the given approach, mm (toward the fingers
+    /// when positive; only with `grasp.slide_mm`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub approach_slide_mm: Option<f64>,
     /// Active joints whose link never touched.
     pub untouched_joints: Vec<String>,
     /// Closing links stopped by another finger (finger-finger collision) before the part.
@@ -186,7 +191,7 @@ pub struct Timings {
     pub autograsp_s: f64,
     /// Contacts, grasp quality and the finger-finger check of the final posture.
     pub evaluate_s: f64,
-    /// The rapier hold test.
+    /// The rapier hold test (the volume quality's whole hull is built beside it).
     pub hold_s: f64,
     /// The whole scene (with the contact map distances), s.
     pub total_s: f64,
@@ -225,6 +230,8 @@ struct Attempt {
     hand_mesh: TriMesh,
     finger_entry: f64,
     hold: hold::HoldReport,
+    /// The volume quality of the grasp wrench space.
+    volume: f64,
     timings: Timings,
 }
 
@@ -259,13 +266,29 @@ fn grasp_from(
     );
     timings.evaluate_s = clock.elapsed().as_secs_f64();
     let clock = std::time::Instant::now();
-    let hold = hold::hold_test_hand(
-        hand,
-        &hand_mesh.vertices,
-        part,
-        scene.mass_kg,
-        scene.friction,
-    )?;
+    // The volume quality needs the whole hull of the grasp wrench space (a quarter of a second
+    // on one core), which nothing else waits for: it is built beside the hold test.
+    let (hold, volume) = rayon::join(
+        || {
+            hold::hold_test_hand(
+                hand,
+                &hand_mesh.vertices,
+                part,
+                scene.mass_kg,
+                scene.friction,
+            )
+        },
+        || {
+            quality::grasp_quality(
+                &cs.contacts,
+                scene.friction,
+                &part.centre_of_mass,
+                part.max_radius,
+            )
+            .volume
+        },
+    );
+    let hold = hold?;
     timings.hold_s = clock.elapsed().as_secs_f64();
     Ok(Attempt {
         approach: *approach,
@@ -277,6 +300,7 @@ fn grasp_from(
         hand_mesh,
         finger_entry,
         hold,
+        volume,
         timings,
     })
 }
@@ -344,8 +368,20 @@ pub fn run_scene_on(
     let mut warnings = part_warnings.to_vec();
     let plan = grasp_plan_for(scene.grasp, hand);
     let clock = std::time::Instant::now();
-    let approaches = match &scene.approach {
-        Approach::Given(a) => vec![scene.part_pose * a],
+    // Each approach with its slide along the palm (given approaches that may slide).
+    let approaches: Vec<(Option<f64>, Isometry3<f64>)> = match &scene.approach {
+        Approach::Given(a) if scene.slide_mm > 0.0 => {
+            let given = scene.part_pose * a;
+            let ranked =
+                placement::slide_search(hand, part, &plan, scene.friction, &given, scene.slide_mm);
+            if ranked.is_empty() {
+                // Every position starts inside the part: the given one says so.
+                vec![(Some(0.0), given)]
+            } else {
+                ranked.into_iter().map(|(o, a)| (Some(o), a)).collect()
+            }
+        }
+        Approach::Given(a) => vec![(None, scene.part_pose * a)],
         Approach::Auto => {
             let r = placement::placement_search(
                 hand,
@@ -372,7 +408,10 @@ pub fn run_scene_on(
                     format!("grasp.approach = \"auto\": no placement closed the hand on the part{opening}; give an approach"),
                 )
             })?;
-            std::iter::once(r.approach).chain(r.runners_up).collect()
+            std::iter::once(r.approach)
+                .chain(r.runners_up)
+                .map(|a| (None, a))
+                .collect()
         }
     };
     timings.search_s = clock.elapsed().as_secs_f64();
@@ -381,7 +420,8 @@ pub fn run_scene_on(
     // search ranks by quality, which is blind to how the squeezed part settles), keeping the
     // first that holds, or the best when none does.
     let mut tried = Vec::new();
-    for (k, approach) in approaches.iter().enumerate() {
+    let mut slides = Vec::new();
+    for (k, (slide, approach)) in approaches.iter().enumerate() {
         let attempt = grasp_from(scene, hand, part, &plan, approach, &areas);
         let attempt = match attempt {
             Ok(a) => a,
@@ -390,16 +430,18 @@ pub fn run_scene_on(
         };
         let holds = attempt.hold.holds;
         tried.push(attempt);
+        slides.push(*slide);
         if holds {
             break;
         }
     }
     let pick = tried.iter().position(|a| a.hold.holds).unwrap_or(0);
-    let placement_tries = if scene.approach == Approach::Auto {
+    let placement_tries = if scene.slide_mm > 0.0 || scene.approach == Approach::Auto {
         tried.len()
     } else {
         0
     };
+    let approach_slide_mm = slides[pick];
     for (k, a) in tried.iter().enumerate() {
         if k != pick {
             timings.search_s += a.timings.autograsp_s + a.timings.evaluate_s + a.timings.hold_s;
@@ -415,18 +457,12 @@ pub fn run_scene_on(
         hand_mesh,
         finger_entry,
         hold: ht,
+        volume,
         timings: own,
     } = tried.swap_remove(pick);
     timings.autograsp_s = own.autograsp_s;
     timings.evaluate_s = own.evaluate_s;
     timings.hold_s = own.hold_s;
-    let volume = quality::grasp_quality(
-        &cs.contacts,
-        scene.friction,
-        &part.centre_of_mass,
-        part.max_radius,
-    )
-    .volume;
     let dry: Vec<&str> = plan
         .pads
         .iter()
@@ -482,6 +518,7 @@ pub fn run_scene_on(
         approach_to_contact_mm: g.approach_mm,
         squeeze: squeezed,
         placement_tries,
+        approach_slide_mm,
         untouched_joints: g.untouched.clone(),
         finger_collisions: g.collisions.clone(),
         finger_core_entry_mm: finger_entry,
@@ -679,6 +716,51 @@ mod tests {
             "{}",
             r.max_penetration_mm
         );
+    }
+
+    /// The template scaled about its wrist (every length times `s`): a hand of another size.
+    fn scaled_template(s: f64) -> SkinnedHand {
+        let t = crate::template::load_template(Side::Right).unwrap();
+        let w = t.skeleton.centre(crate::anatomy::Joint::Wrist);
+        let scale = |p: &Point| w + (p - w) * s;
+        let mut sk = t.skeleton.clone();
+        for j in &mut sk.joints {
+            j.centre = scale(&j.centre);
+        }
+        for tip in &mut sk.tips {
+            *tip = scale(tip);
+        }
+        let skin = TriMesh {
+            vertices: t.mesh.vertices.iter().map(scale).collect(),
+            faces: t.mesh.faces.clone(),
+        };
+        let h = crate::pose::IndividualHand::from_parts(Side::Right, skin, sk, t.weights.clone())
+            .unwrap();
+        SkinnedHand::new(h).unwrap()
+    }
+
+    /// The bottle's given approach is the template's: from exactly there a hand 10 % shorter
+    /// drops the bottle in the hold test; with the scene's slide along the palm it closes at
+    /// another place, force closure, and holds.
+    #[test]
+    fn a_shorter_hand_slides_along_its_palm_to_hold_the_bottle() {
+        let small = scaled_template(0.9);
+        let mut fixed = shipped_scene("bottle");
+        assert!(fixed.slide_mm > 0.0);
+        fixed.slide_mm = 0.0;
+        let r = run_scene(&fixed, &small).unwrap().report;
+        assert!(!r.holds, "{:?}", r.hold_test);
+        assert_eq!(r.approach_slide_mm, None);
+        let r = run_scene(&shipped_scene("bottle"), &small).unwrap().report;
+        assert!(
+            r.force_closure && r.holds,
+            "{} {:?}",
+            r.epsilon,
+            r.hold_test
+        );
+        let slide = r.approach_slide_mm.unwrap();
+        assert!(slide != 0.0 && slide.abs() <= 15.0, "{slide}");
+        assert_eq!(slide % placement::SLIDE_STEP_MM, 0.0);
     }
 
     /// The pen in a lateral (key) pinch: held between the thumb's distal pad and the radial

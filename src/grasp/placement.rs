@@ -91,8 +91,6 @@ pub struct PlacementResult {
     pub pads_touching: usize,
     /// Its epsilon (full evaluation).
     pub epsilon: f64,
-    /// Its volume quality.
-    pub volume: f64,
     /// Candidates screened (not rejected, within the time bound).
     pub evaluated: usize,
     /// The other finalists' approaches, best first (for a caller that rejects the best, e.g.
@@ -129,8 +127,9 @@ fn starts_deep_inside(
 }
 
 /// Quality of the hand closed by `opts` from `root`: (pads of the plan touching, epsilon,
-/// volume, contact area), the contacts measured on every `stride`-th skin vertex (each standing
-/// for `stride` vertices' area) and the friction cones linearised with `edges` edges; epsilon
+/// volume ([`super::quality::ranking_quality`]: 0 with force closure), contact area), the
+/// contacts measured on every `stride`-th skin vertex (each standing for `stride` vertices'
+/// area) and the friction cones linearised with `edges` edges; epsilon
 /// and volume of the pads' contacts alone for a plan with [`GraspPlan::pads`]; with `squeezed`,
 /// measured after the [`squeeze`], as the scene is. `None` when the autograsp refuses the
 /// start.
@@ -167,9 +166,166 @@ fn closed_quality(
         .cloned()
         .collect();
     let w = super::quality::cone_wrenches(&held, mu, &part.centre_of_mass, part.max_radius, edges);
-    let q = super::quality::quality(&w);
+    let q = super::quality::ranking_quality(&w);
     let pads = plan.pads.iter().filter(|l| c.touches(l.index())).count();
     Some((pads, q.epsilon, q.volume, c.total_area_mm2()))
+}
+
+/// A candidate's score: (its index, pads of the plan touching, epsilon, volume, contact area).
+type Score = (usize, usize, f64, f64, f64);
+
+/// The order of [`closed_quality`]'s scores, the index aside: pads touching, then epsilon,
+/// then volume (which only grasps without force closure have), then contact area.
+fn by_quality(a: &Score, b: &Score) -> std::cmp::Ordering {
+    a.1.cmp(&b.1)
+        .then(a.2.total_cmp(&b.2))
+        .then(a.3.total_cmp(&b.3))
+        .then(a.4.total_cmp(&b.4))
+}
+
+/// The placement search's two stages on candidate approaches `0..n` (`approach_of(i)`: the
+/// grasp frame in the part's world, `None` to skip): each screened (parallel, until
+/// `time_limit_s`) by the coarse autograsp and scored on every [`SCREEN_STRIDE`]-th vertex
+/// with [`SCREEN_CONE_EDGES`]-edge cones, a start deep inside the part rejected by the voxel
+/// grid; then down that ranking, `finalists` at a time until `finalists` succeed, closed by
+/// the default autograsp, squeezed and scored in full. Returns the finalists' scores, best
+/// first (ties to the lower index), and how many candidates were screened.
+#[allow(clippy::too_many_arguments)]
+fn screen_and_rank(
+    hand: &dyn PosableHand,
+    part: &PartShape,
+    plan: &GraspPlan,
+    mu: f64,
+    n: usize,
+    approach_of: &(dyn Fn(usize) -> Option<Isometry3<f64>> + Sync),
+    finalists: usize,
+    time_limit_s: f64,
+) -> (Vec<Score>, usize) {
+    use rayon::prelude::*;
+    let gf = grasp_frame(hand);
+    let coarse = AutograspOptions {
+        step: 0.1,
+        min_step: 0.05,
+        max_depth_mm: 2.0,
+        stride: SCREEN_STRIDE,
+        ..AutograspOptions::default()
+    };
+    // A bar only where status lines are logged (the command line without --quiet).
+    let bar = if log::log_enabled!(log::Level::Info) && n > 50 {
+        indicatif::ProgressBar::new(n as u64)
+    } else {
+        indicatif::ProgressBar::hidden()
+    };
+    let started = std::time::Instant::now();
+    let coarse_sample = skin_sample(hand, SCREEN_STRIDE);
+    let root_of = |i: usize| Some(approach_of(i)? * gf.inverse());
+    let score = |i: usize, root, opts: &AutograspOptions, sample: &_, edges, squeezed| {
+        let (p, e, v, a) =
+            closed_quality(hand, part, plan, mu, root, opts, sample, edges, squeezed)?;
+        Some((i, p, e, v, a))
+    };
+    let scored: Vec<Option<Score>> = (0..n)
+        .into_par_iter()
+        .map_init(Vec::new, |buf, i| {
+            bar.inc(1);
+            if started.elapsed().as_secs_f64() > time_limit_s {
+                return None;
+            }
+            let root = root_of(i)?;
+            if starts_deep_inside(hand, part, plan, root, buf) {
+                return None;
+            }
+            score(i, root, &coarse, &coarse_sample, SCREEN_CONE_EDGES, false)
+        })
+        .collect();
+    bar.finish_and_clear();
+    let better = |a: &Score, b: &Score| by_quality(a, b).then(b.0.cmp(&a.0));
+    let evaluated = scored.iter().filter(|s| s.is_some()).count();
+    log::debug!(
+        "placement search: screening {:.2} s",
+        started.elapsed().as_secs_f64()
+    );
+    let mut ranked: Vec<Score> = scored.into_iter().flatten().collect();
+    ranked.sort_by(|a, b| better(b, a));
+    let full_sample = skin_sample(hand, 1);
+    let full = AutograspOptions::default();
+    // Down the ranking, `finalists` at a time, until `finalists` full evaluations succeed.
+    let mut finals: Vec<Score> = Vec::new();
+    for chunk in ranked.chunks(finalists.max(1)) {
+        if finals.len() >= finalists {
+            break;
+        }
+        finals.extend(
+            chunk
+                .par_iter()
+                .filter_map(|&(i, ..)| {
+                    score(
+                        i,
+                        root_of(i)?,
+                        &full,
+                        &full_sample,
+                        super::quality::CONE_EDGES,
+                        true,
+                    )
+                })
+                .collect::<Vec<Score>>(),
+        );
+    }
+    finals.sort_by(|a, b| better(b, a));
+    log::debug!(
+        "placement search: finalists {:.2} s",
+        started.elapsed().as_secs_f64()
+    );
+    (finals, evaluated)
+}
+
+/// Spacing of the positions [`slide_search`] closes the hand at, mm.
+pub const SLIDE_STEP_MM: f64 = 5.0;
+
+/// Positions of a [`slide_search`] evaluated in full after the screening.
+pub const SLIDE_FINALISTS: usize = 3;
+
+/// A given approach refined for the hand: its grasp frame moved along its own y (toward the
+/// fingers; toward the wrist when negative) by multiples of [`SLIDE_STEP_MM`] up to `slide_mm`
+/// either way, screened and ranked as the placement search's candidates are
+/// ([`SLIDE_FINALISTS`] evaluated in full: closed, squeezed, every vertex, the full friction
+/// cones). A scene's approach is written for one hand: on a hand of another size or
+/// proportions the part sits elsewhere under the palm and the digits reach round it
+/// differently, as a person's grip moves along the palm to suit the hand.
+///
+/// `approach` is the grasp frame in the part's world. Returns the positions, best first, as
+/// (offset along the palm, mm; approach), the finalists only; a position where the hand starts
+/// inside the part is left out (empty when all are). Among equal scores the smaller slide
+/// comes first.
+pub fn slide_search(
+    hand: &dyn PosableHand,
+    part: &PartShape,
+    plan: &GraspPlan,
+    mu: f64,
+    approach: &Isometry3<f64>,
+    slide_mm: f64,
+) -> Vec<(f64, Isometry3<f64>)> {
+    let n = (slide_mm / SLIDE_STEP_MM + 1e-9).floor() as i64;
+    // Nearest the given approach first, so that ties go to the smaller slide.
+    let offsets: Vec<f64> = std::iter::once(0)
+        .chain((1..=n).flat_map(|k| [-k, k]))
+        .map(|k| k as f64 * SLIDE_STEP_MM)
+        .collect();
+    let at = |o: f64| approach * Translation3::new(0.0, o, 0.0);
+    let (finals, _) = screen_and_rank(
+        hand,
+        part,
+        plan,
+        mu,
+        offsets.len(),
+        &|i| Some(at(offsets[i])),
+        SLIDE_FINALISTS,
+        f64::INFINITY,
+    );
+    finals
+        .iter()
+        .map(|s| (offsets[s.0], at(offsets[s.0])))
+        .collect()
 }
 
 /// Every `stride`-th skin vertex: (indices, links, areas scaled to stand for the skipped).
@@ -215,7 +371,6 @@ pub fn placement_search(
     candidates: usize,
     time_limit_s: f64,
 ) -> Option<PlacementResult> {
-    use rayon::prelude::*;
     let mut rng = Rng::new(seed).fork("placement");
     let cand: Vec<(Vec3, f64)> = (0..candidates)
         .map(|_| {
@@ -225,24 +380,6 @@ pub fn placement_search(
             )
         })
         .collect();
-    let gf = grasp_frame(hand);
-    let coarse = AutograspOptions {
-        step: 0.1,
-        min_step: 0.05,
-        max_depth_mm: 2.0,
-        stride: SCREEN_STRIDE,
-        ..AutograspOptions::default()
-    };
-    // A bar only where status lines are logged (the command line without --quiet).
-    let bar = if log::log_enabled!(log::Level::Info) {
-        indicatif::ProgressBar::new(candidates as u64)
-    } else {
-        indicatif::ProgressBar::hidden()
-    };
-    let started = std::time::Instant::now();
-    let coarse_sample = skin_sample(hand, SCREEN_STRIDE);
-    // (candidate, pads touching, epsilon, volume, contact area)
-    type Score = (usize, usize, f64, f64, f64);
     let pad = pad_point(hand, plan);
     let press = press_travel(hand, plan);
     let approach_of = |i: usize| match (&pad, &press) {
@@ -250,78 +387,25 @@ pub fn placement_search(
         (Some(p), None) => pad_placement(part, &cand[i].0, cand[i].1, p),
         (None, _) => placement(part, &cand[i].0, cand[i].1, 3.0),
     };
-    let root_of = |i: usize| Some(approach_of(i)? * gf.inverse());
-    let score = |i: usize, root, opts: &AutograspOptions, sample: &_, edges, squeezed| {
-        let (n, e, v, a) =
-            closed_quality(hand, part, plan, mu, root, opts, sample, edges, squeezed)?;
-        Some((i, n, e, v, a))
-    };
-    let scored: Vec<Option<Score>> = cand
-        .par_iter()
-        .enumerate()
-        .map_init(Vec::new, |buf, (i, _)| {
-            bar.inc(1);
-            if started.elapsed().as_secs_f64() > time_limit_s {
-                return None;
-            }
-            let root = root_of(i)?;
-            if starts_deep_inside(hand, part, plan, root, buf) {
-                return None;
-            }
-            score(i, root, &coarse, &coarse_sample, SCREEN_CONE_EDGES, false)
-        })
-        .collect();
-    bar.finish_and_clear();
-    let better = |a: &Score, b: &Score| {
-        a.1.cmp(&b.1)
-            .then(a.2.total_cmp(&b.2))
-            .then(a.3.total_cmp(&b.3))
-            .then(a.4.total_cmp(&b.4))
-            .then(b.0.cmp(&a.0))
-    };
-    let evaluated = scored.iter().filter(|s| s.is_some()).count();
-    log::debug!(
-        "placement search: screening {:.2} s",
-        started.elapsed().as_secs_f64()
+    let (finals, evaluated) = screen_and_rank(
+        hand,
+        part,
+        plan,
+        mu,
+        candidates,
+        &approach_of,
+        FINALISTS,
+        time_limit_s,
     );
-    let mut ranked: Vec<Score> = scored.into_iter().flatten().collect();
-    ranked.sort_by(|a, b| better(b, a));
-    let full_sample = skin_sample(hand, 1);
-    let full = AutograspOptions::default();
-    // Down the ranking, FINALISTS at a time, until FINALISTS full evaluations succeed.
-    let mut finals: Vec<Score> = Vec::new();
-    for chunk in ranked.chunks(FINALISTS) {
-        if finals.len() >= FINALISTS {
-            break;
-        }
-        finals.extend(
-            chunk
-                .par_iter()
-                .filter_map(|&(i, ..)| {
-                    score(
-                        i,
-                        root_of(i)?,
-                        &full,
-                        &full_sample,
-                        super::quality::CONE_EDGES,
-                        true,
-                    )
-                })
-                .collect::<Vec<Score>>(),
-        );
-    }
-    finals.sort_by(|a, b| better(b, a));
     log::debug!(
-        "placement search: {evaluated} of {candidates} candidates screened, {} finalists, {:.2} s",
+        "placement search: {evaluated} of {candidates} candidates screened, {} finalists",
         finals.len(),
-        started.elapsed().as_secs_f64()
     );
     let best = *finals.first()?;
     Some(PlacementResult {
         approach: approach_of(best.0)?,
         pads_touching: best.1,
         epsilon: best.2,
-        volume: best.3,
         evaluated,
         runners_up: finals[1..]
             .iter()

@@ -23,6 +23,9 @@
 //! type = "power"                 # power | precision | pinch | tripod | lateral
 //! approach = "auto"              # or a table: the hand's grasp frame in the part's frame:
 //! # approach = { translation_mm = [0, -55, 100], rotation_deg = [90, 0, 0] }
+//! # slide_mm = 15                 # with a given approach (optional, default 0): the hand may
+//! #                                #   slide along its palm up to this far either way, for
+//! #                                #   the best grasp of its own size
 //! seed = 1                       # placement search (approach = "auto"): seed,
 //! candidates = 1000              #   number of candidate placements,
 //! time_limit_s = 15              #   and a bound on its time
@@ -115,6 +118,10 @@ pub struct Scene {
     pub grasp: GraspType,
     /// Approach.
     pub approach: Approach,
+    /// How far a given approach may slide along the palm (the grasp frame's y) either way,
+    /// mm: each hand is closed at several positions and its best kept
+    /// ([`super::placement::slide_search`]); 0 keeps the approach as given.
+    pub slide_mm: f64,
     /// Placement search seed.
     pub seed: u64,
     /// Placement search candidates.
@@ -160,6 +167,7 @@ struct RawGrasp {
     #[serde(rename = "type")]
     kind: String,
     approach: toml::Value,
+    slide_mm: Option<f64>,
     seed: Option<u64>,
     candidates: Option<usize>,
     time_limit_s: Option<f64>,
@@ -192,6 +200,10 @@ fn finite(path: &Path, key: &str, v: &[f64]) -> Result<()> {
         ))
     }
 }
+
+/// Largest `grasp.slide_mm`: beyond it the slide is no longer the same approach (a palm is
+/// about 100 mm long).
+pub const MAX_SLIDE_MM: f64 = 50.0;
 
 /// Read and check a scene file.
 pub fn read_scene(path: &Path) -> Result<Scene> {
@@ -281,6 +293,19 @@ pub(crate) fn parse_scene(text: &str, path: &Path) -> Result<Scene> {
             ))
         }
     };
+    let slide_mm = g.slide_mm.unwrap_or(0.0);
+    if !(0.0..=MAX_SLIDE_MM).contains(&slide_mm) {
+        return Err(Error::input(
+            path,
+            format!("grasp.slide_mm must be a distance in mm from 0 to {MAX_SLIDE_MM}"),
+        ));
+    }
+    if slide_mm > 0.0 && approach == Approach::Auto {
+        return Err(Error::input(
+            path,
+            "grasp.slide_mm moves a given approach; with approach = \"auto\" the placement search places the hand, so remove slide_mm",
+        ));
+    }
     let candidates = g.candidates.unwrap_or(1000);
     if !(1..=1_000_000).contains(&candidates) {
         return Err(Error::input(
@@ -307,6 +332,7 @@ pub(crate) fn parse_scene(text: &str, path: &Path) -> Result<Scene> {
         side,
         grasp,
         approach,
+        slide_mm,
         seed: g.seed.unwrap_or(1),
         candidates,
         time_limit_s,
@@ -388,6 +414,15 @@ approach = { translation_mm = [0, -50, 100], rotation_deg = [90, 0, 0] }
         }
     }
 
+    /// A given approach keeps its place unless the scene lets it slide.
+    #[test]
+    fn slide_is_optional_and_read_in_mm() {
+        let p = Path::new("s.toml");
+        assert_eq!(parse_scene(OK, p).unwrap().slide_mm, 0.0);
+        let s = parse_scene(&(OK.to_string() + "slide_mm = 12.5\n"), p).unwrap();
+        assert_eq!(s.slide_mm, 12.5);
+    }
+
     #[test]
     fn part_markers_are_optional_and_checked() {
         let p = Path::new("s.toml");
@@ -445,6 +480,16 @@ approach = { translation_mm = [0, -50, 100], rotation_deg = [90, 0, 0] }
             (
                 OK.replace("approach = {", "approach = 3 #"),
                 "grasp.approach",
+            ),
+            (OK.to_string() + "slide_mm = -5\n", "grasp.slide_mm"),
+            (OK.to_string() + "slide_mm = 80\n", "grasp.slide_mm"),
+            (OK.to_string() + "slide_mm = nan\n", "grasp.slide_mm"),
+            (
+                OK.replace(
+                    "approach = { translation_mm = [0, -50, 100], rotation_deg = [90, 0, 0] }",
+                    "approach = \"auto\"\nslide_mm = 10",
+                ),
+                "grasp.slide_mm",
             ),
         ];
         for (text, key) in cases {
