@@ -66,6 +66,10 @@ pub struct HandOutcome {
     pub contact_area_by_finger_mm2: BTreeMap<String, f64>,
     /// Joints ending within [`AT_LIMIT_DEG`] of an anatomical limit, as `JOINT dof at LIMIT°`.
     pub at_limit: Vec<String>,
+    /// How far the hand moved along its palm from the scene's given approach, mm, toward the
+    /// fingers when positive (a scene with `grasp.slide_mm`; `None` otherwise).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub approach_slide_mm: Option<f64>,
     /// Why it does not hold (`None`: it holds).
     pub failure: Option<Failure>,
     /// The scene's error when no grasp was found.
@@ -126,6 +130,7 @@ pub fn hand_outcome(
         contact_area_mm2: 0.0,
         contact_area_by_finger_mm2: BTreeMap::new(),
         at_limit: Vec::new(),
+        approach_slide_mm: None,
         failure: Some(Failure::NoGrasp),
         error: None,
         time_s: 0.0,
@@ -135,6 +140,7 @@ pub fn hand_outcome(
         Ok(r) => {
             o.holds = r.holds;
             o.force_closure = r.force_closure;
+            o.approach_slide_mm = r.approach_slide_mm;
             o.epsilon = r.epsilon;
             o.worst_displacement_mm = r
                 .hold_test
@@ -291,6 +297,7 @@ mod tests {
             contact_area_mm2: 300.0,
             contact_area_by_finger_mm2: BTreeMap::new(),
             at_limit: Vec::new(),
+            approach_slide_mm: None,
             failure,
             error: None,
             time_s: 1.0,

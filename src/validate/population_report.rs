@@ -71,10 +71,18 @@ pub fn hand_table(s: &PopulationSummary) -> Table {
     .map(|h| h.to_string())
     .collect();
     head.extend(digits.iter().map(|d| format!("{d} (mm²)")));
+    // Only a scene whose given approach slides (`grasp.slide_mm`) moves the hands.
+    let slid = s.outcomes.iter().any(|o| o.approach_slide_mm.is_some());
+    if slid {
+        head.push("moved along the palm (mm)".into());
+    }
     head.push("at a limit".into());
     head.push("why not held".into());
     let mut numeric = vec![false, true, true, false, false, true, true, true];
     numeric.extend([true; 6]);
+    if slid {
+        numeric.push(true);
+    }
     numeric.extend([false, false]);
     let mut t = Table {
         head,
@@ -103,6 +111,12 @@ pub fn hand_table(s: &PopulationSummary) -> Table {
         for d in digits {
             let a = o.contact_area_by_finger_mm2.get(d).copied().unwrap_or(0.0);
             row.push(Cell::new(format!("{a:.0}")));
+        }
+        if slid {
+            row.push(Cell::new(match o.approach_slide_mm {
+                Some(d) => format!("{d:+.0}"),
+                None => "-".into(),
+            }));
         }
         row.push(Cell::new(o.at_limit.join(", ")));
         let why = match (&o.failure, &o.error) {
@@ -284,6 +298,7 @@ mod tests {
             contact_area_mm2: 300.0,
             contact_area_by_finger_mm2: [("thumb".to_string(), 120.0)].into_iter().collect(),
             at_limit: vec!["T_IP flexion at -20°".into()],
+            approach_slide_mm: None,
             failure: (!holds).then_some(Failure::Slips),
             error: None,
             time_s: 1.0,
@@ -334,5 +349,29 @@ mod tests {
         assert!(size_table(&two).note.starts_with("The hands in two halves"));
         // The thumb's area in its column.
         assert!(md.contains("| 120 |"), "{md}");
+        // No hand moved: no column for it.
+        assert!(!md.contains("moved along the palm"));
+    }
+
+    /// A scene whose approach slides gets a column with each hand's move along its palm, a
+    /// hand without one (no grasp found) a dash.
+    #[test]
+    fn hands_that_slid_along_the_palm_say_how_far() {
+        let mut a = hand("a", 170.0, true);
+        a.approach_slide_mm = Some(10.0);
+        let mut b = hand("b", 180.0, true);
+        b.approach_slide_mm = Some(-5.0);
+        let c = hand("c", 190.0, false);
+        let s = summarise("bottle.toml", "power", vec![a, b, c]);
+        let t = hand_table(&s);
+        let col = t
+            .head
+            .iter()
+            .position(|h| h == "moved along the palm (mm)")
+            .unwrap();
+        assert_eq!(t.numeric.len(), t.head.len());
+        let cells: Vec<&str> = t.rows.iter().map(|r| r[col].text.as_str()).collect();
+        assert_eq!(cells, ["+10", "-5", "-"]);
+        assert!(t.rows.iter().all(|r| r.len() == t.head.len()));
     }
 }
