@@ -419,8 +419,8 @@ pub fn run_scene_on(
     // The search's best first; when it does not hold in rapier, its runners-up in turn (the
     // search ranks by quality, which is blind to how the squeezed part settles), keeping the
     // first that holds, or the best when none does.
-    let mut tried = Vec::new();
-    let mut slides = Vec::new();
+    // (its slide along the palm, the attempt)
+    let mut tried: Vec<(Option<f64>, Attempt)> = Vec::new();
     for (k, (slide, approach)) in approaches.iter().enumerate() {
         let attempt = grasp_from(scene, hand, part, &plan, approach, &areas);
         let attempt = match attempt {
@@ -429,37 +429,38 @@ pub fn run_scene_on(
             Err(_) => continue,
         };
         let holds = attempt.hold.holds;
-        tried.push(attempt);
-        slides.push(*slide);
+        tried.push((*slide, attempt));
         if holds {
             break;
         }
     }
-    let pick = tried.iter().position(|a| a.hold.holds).unwrap_or(0);
+    let pick = tried.iter().position(|(_, a)| a.hold.holds).unwrap_or(0);
     let placement_tries = if scene.slide_mm > 0.0 || scene.approach == Approach::Auto {
         tried.len()
     } else {
         0
     };
-    let approach_slide_mm = slides[pick];
-    for (k, a) in tried.iter().enumerate() {
+    for (k, (_, a)) in tried.iter().enumerate() {
         if k != pick {
             timings.search_s += a.timings.autograsp_s + a.timings.evaluate_s + a.timings.hold_s;
         }
     }
-    let Attempt {
-        approach,
-        g,
-        pose,
-        squeezed,
-        cs,
-        q,
-        hand_mesh,
-        finger_entry,
-        hold: ht,
-        volume,
-        timings: own,
-    } = tried.swap_remove(pick);
+    let (
+        approach_slide_mm,
+        Attempt {
+            approach,
+            g,
+            pose,
+            squeezed,
+            cs,
+            q,
+            hand_mesh,
+            finger_entry,
+            hold: ht,
+            volume,
+            timings: own,
+        },
+    ) = tried.swap_remove(pick);
     timings.autograsp_s = own.autograsp_s;
     timings.evaluate_s = own.evaluate_s;
     timings.hold_s = own.hold_s;

@@ -127,9 +127,10 @@ pub fn epsilon(wrenches: &[Wrench]) -> Epsilon {
 }
 
 /// [`quality`] as a ranking needs it: epsilon as [`epsilon`] gives it (what an evaluation
-/// reports), and the volume only without force closure (0 with it). Two grasps with force closure never tie on epsilon, so only those without it are
-/// ranked by volume, and only those need the whole hull; the others get their epsilon from the
-/// nearest-facet search ([`epsilon`]), a few hundred facets instead of tens of thousands.
+/// reports), and the volume only without force closure (0 with it). Two grasps with force
+/// closure never tie on epsilon, so only those without it are ranked by volume, and only those
+/// need the whole hull; the others get their epsilon from the nearest-facet search, a few
+/// hundred facets instead of tens of thousands.
 pub fn ranking_quality(wrenches: &[Wrench]) -> Quality {
     let e = epsilon(wrenches);
     if e.force_closure {
