@@ -251,6 +251,10 @@ enum Command {
         /// scene is tracked without a part.
         #[arg(long, value_name = "[MOTION=]SCENE", requires = "track")]
         scene: Vec<String>,
+        /// Shape prior of every subject's skin fit, as `reconstruct --shape-prior`; a subject
+        /// reconstructed with another prior (or none) is redone.
+        #[arg(long, value_name = "builtin|FILE|none")]
+        shape_prior: Option<PathBuf>,
     },
 }
 
@@ -393,6 +397,7 @@ fn main() -> ExitCode {
             template,
             track,
             scene,
+            shape_prior,
         } => cli::batch::MotionScenes::parse(&scene).and_then(|scenes| {
             cli::batch(
                 &subjects_dir,
@@ -401,7 +406,10 @@ fn main() -> ExitCode {
                     jobs,
                     template,
                     track: track.then_some(scenes),
-                    ..Default::default()
+                    skin: ergohand::skin::pipeline::SkinOptions {
+                        shape_prior: cli::reconstruct::shape_prior_option(shape_prior.as_deref())?,
+                        ..Default::default()
+                    },
                 },
             )
             .map(|_| ())

@@ -27,7 +27,9 @@ use super::correspondence::{
 use super::distal_frame::distal_frames_by_homology;
 use super::posture_fit::{fit_posture, PostureFit, PostureTargets, SkinnedMarker};
 use super::section_centre::{centre_on_cross_section, centre_ring, depth_offsets, depth_rings};
-use super::shape_prior::{fold_free_displacement, subject_features, JointLine, ShapePrior};
+use super::shape_prior::{
+    fold_free_displacement, subject_features, JointLine, ShapePrior, FEATURE_LIMIT_SD,
+};
 use super::simplify::simplify_qem;
 use super::transfer::{bind, transfer};
 use super::unfold::{bone_carried_normals, face_turn, unfold_skin, FaceTurn, UNFOLD_PASSES};
@@ -313,12 +315,19 @@ pub fn fit_skin(
                         .collect()
                 })
                 .unwrap_or_default();
-            Some(p.predict(&subject_features(
-                dimensions,
-                &markers,
-                &joints,
-                marker_offset_mm,
-            )))
+            let features = subject_features(dimensions, &markers, &joints, marker_offset_mm);
+            let outside = p.outside(&features, FEATURE_LIMIT_SD);
+            if !outside.is_empty() {
+                let named: Vec<String> = outside
+                    .iter()
+                    .map(|(n, z)| format!("{n} at {z:+.1} SD"))
+                    .collect();
+                warnings.push(format!(
+                    "skin: the shape prior knows no hand like this one ({}; read at                      {FEATURE_LIMIT_SD} SD): check that caliper or that joint's marker, or                      compare with --shape-prior none",
+                    named.join(", ")
+                ));
+            }
+            Some(p.predict(&features))
         }
         Some(p) => {
             return Err(Error::invalid(format!(

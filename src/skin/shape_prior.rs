@@ -51,6 +51,11 @@ const FACING_COS: f64 = 0.5;
 /// voxel scan, rough at its resolution).
 pub const SMOOTHING_PASSES: usize = 4;
 
+/// How far from the training population's mean, in its standard deviations, a subject's
+/// feature is still read as it is ([`ShapePrior::predict`]); the README gives the figures
+/// this was chosen on.
+pub const FEATURE_LIMIT_SD: f64 = 5.0;
+
 /// Offsets stored to this resolution, mm.
 const STORED_RESOLUTION_MM: f64 = 0.01;
 
@@ -506,15 +511,37 @@ impl ShapePrior {
             .clone()
     }
 
-    /// The normal offset per template vertex predicted for a subject with these features
-    /// ([`subject_features`]), mm.
-    pub fn predict(&self, features: &BTreeMap<String, f64>) -> Vec<f64> {
-        let z = standardise(
+    /// The subject's features standardised by the training population's mean and SD.
+    fn standardised(&self, features: &BTreeMap<String, f64>) -> DVector<f64> {
+        standardise(
             features,
             &self.features,
             &self.feature_mean,
             &self.feature_sd,
-        );
+        )
+    }
+
+    /// The features of a subject that lie more than `limit_sd` training SDs from the training
+    /// mean, each with its standardised value, in the prior's feature order.
+    pub fn outside(&self, features: &BTreeMap<String, f64>, limit_sd: f64) -> Vec<(String, f64)> {
+        let z = self.standardised(features);
+        self.features
+            .iter()
+            .zip(z.iter())
+            .filter(|(_, v)| v.abs() > limit_sd)
+            .map(|(n, v)| (n.clone(), *v))
+            .collect()
+    }
+
+    /// The normal offset per template vertex predicted for a subject with these features
+    /// ([`subject_features`]), mm. A feature beyond [`FEATURE_LIMIT_SD`] is read at that limit:
+    /// a linear model extrapolated far outside its training population predicts offsets no
+    /// training hand showed, and such a feature is more often a wrong caliper or a slipped
+    /// marker than a hand that unusual.
+    pub fn predict(&self, features: &BTreeMap<String, f64>) -> Vec<f64> {
+        let z = self
+            .standardised(features)
+            .map(|v| v.clamp(-FEATURE_LIMIT_SD, FEATURE_LIMIT_SD));
         let scores: Vec<f64> = self
             .coefficients
             .iter()
@@ -777,6 +804,32 @@ mod tests {
         assert_eq!((&back.mean, &back.modes), (&prior.mean, &prior.modes));
         let again = back.predict(&feats(&fresh));
         assert!(again.iter().zip(&got).all(|(a, b)| (a - b).abs() < 1e-9));
+        // A feature far outside the training population is read at the limit: a hand of a
+        // wrist breadth beyond it gets the same field as one exactly at it, and is named.
+        let k = prior
+            .features
+            .iter()
+            .position(|n| n == &Dimension::WristBreadth.name())
+            .unwrap();
+        let at_limit = |sd: f64| {
+            let mut f = feats(&fresh);
+            f.insert(
+                prior.features[k].clone(),
+                prior.feature_mean[k] + sd * prior.feature_sd[k],
+            );
+            f
+        };
+        let (limit, far) = (at_limit(FEATURE_LIMIT_SD), at_limit(3.0 * FEATURE_LIMIT_SD));
+        let (a, b) = (prior.predict(&limit), prior.predict(&far));
+        assert!(a.iter().zip(&b).all(|(x, y)| (x - y).abs() < 1e-9));
+        assert!(prior.outside(&feats(&fresh), FEATURE_LIMIT_SD).is_empty());
+        let named = prior.outside(&far, FEATURE_LIMIT_SD);
+        assert_eq!(named.len(), 1, "{named:?}");
+        assert_eq!(named[0].0, prior.features[k]);
+        assert!((named[0].1 - 3.0 * FEATURE_LIMIT_SD).abs() < 1e-9);
+        // Inside the limit the field still follows the feature.
+        let inside = prior.predict(&at_limit(0.5 * FEATURE_LIMIT_SD));
+        assert!(inside.iter().zip(&a).any(|(x, y)| (x - y).abs() > 1e-6));
     }
 
     #[test]
