@@ -316,6 +316,13 @@ pub fn fit_skin(
                 })
                 .unwrap_or_default();
             let features = subject_features(dimensions, &markers, &joints, marker_offset_mm);
+            if let Some((n, z)) = p
+                .outside(&features, 0.0)
+                .into_iter()
+                .max_by(|a, b| a.1.abs().total_cmp(&b.1.abs()))
+            {
+                log::debug!("skin: the shape prior's farthest feature: {n} at {z:+.1} SD");
+            }
             let outside = p.outside(&features, FEATURE_LIMIT_SD);
             if !outside.is_empty() {
                 let named: Vec<String> = outside
@@ -323,7 +330,9 @@ pub fn fit_skin(
                     .map(|(n, z)| format!("{n} at {z:+.1} SD"))
                     .collect();
                 warnings.push(format!(
-                    "skin: the shape prior knows no hand like this one ({}; read at                      {FEATURE_LIMIT_SD} SD): check that caliper or that joint's marker, or                      compare with --shape-prior none",
+                    "skin: the shape prior knows no hand like this one ({}; read at \
+                     {FEATURE_LIMIT_SD} SD): check that caliper or that joint's marker, or \
+                     compare with --shape-prior none",
                     named.join(", ")
                 ));
             }
@@ -1090,6 +1099,23 @@ mod tests {
             plain.inverted_faces
         );
         assert!(prior.inverted_faces == 0 || prior.warnings.iter().any(|w| w.contains("inverted")));
+        // An ordinary hand is inside the prior's population; the same hand with a palm
+        // thickness entered 60 % too large is not, and the warning names that caliper.
+        let unknown = |w: &String| w.contains("knows no hand");
+        assert!(!prior.warnings.iter().any(unknown), "{:?}", prior.warnings);
+        let mut wrong = s.clone();
+        *wrong
+            .subject
+            .dimensions
+            .get_mut(&Dimension::HandThicknessMc3)
+            .unwrap() *= 1.6;
+        let opts = SkinOptions {
+            shape_prior: Some(ShapePrior::builtin()),
+            ..SkinOptions::default()
+        };
+        let warned = fit_with_model(&wrong, &t, &model, &opts).warnings;
+        let w = warned.iter().find(|w| unknown(w)).expect("a warning");
+        assert!(w.contains(&Dimension::HandThicknessMc3.name()), "{w}");
     }
 
     /// On a procedural hand (seed 7) the fit on the simplified template, carried to the fine
