@@ -317,7 +317,7 @@ pub fn fit_skin(
                 .unwrap_or_default();
             let features = subject_features(dimensions, &markers, &joints, marker_offset_mm);
             if let Some((n, z)) = p
-                .outside(&features, 0.0)
+                .standard_scores(&features)
                 .into_iter()
                 .max_by(|a, b| a.1.abs().total_cmp(&b.1.abs()))
             {

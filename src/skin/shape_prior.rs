@@ -521,15 +521,24 @@ impl ShapePrior {
         )
     }
 
-    /// The features of a subject that lie more than `limit_sd` training SDs from the training
-    /// mean, each with its standardised value, in the prior's feature order.
-    pub fn outside(&self, features: &BTreeMap<String, f64>, limit_sd: f64) -> Vec<(String, f64)> {
+    /// Every feature the prior reads, by name, with the subject's value standardised by the
+    /// training population (training SDs from its mean; a missing feature reads 0), in the
+    /// prior's feature order.
+    pub fn standard_scores(&self, features: &BTreeMap<String, f64>) -> Vec<(String, f64)> {
         let z = self.standardised(features);
         self.features
             .iter()
-            .zip(z.iter())
+            .cloned()
+            .zip(z.iter().copied())
+            .collect()
+    }
+
+    /// The features of a subject that lie more than `limit_sd` training SDs from the training
+    /// mean, each with its standardised value, in the prior's feature order.
+    pub fn outside(&self, features: &BTreeMap<String, f64>, limit_sd: f64) -> Vec<(String, f64)> {
+        self.standard_scores(features)
+            .into_iter()
             .filter(|(_, v)| v.abs() > limit_sd)
-            .map(|(n, v)| (n.clone(), *v))
             .collect()
     }
 
