@@ -339,6 +339,15 @@ pub fn landmark_names() -> Vec<&'static str> {
     v
 }
 
+/// The optional fingertip markers of the static reference trial (an extension of the spec, see
+/// the README): one per digit on the fingertip's apex, where the distal phalanx's long axis
+/// leaves the skin (thumb first). Nothing else marks the fingertip beyond the nail, so where a
+/// lab places them the skin's fingertips, and the distal frames carried by the skin, follow
+/// them; without them the template shapes the fingertips alone.
+pub fn tip_marker_names() -> [&'static str; 5] {
+    ["T_TIP", "I_TIP", "M_TIP", "R_TIP", "L_TIP"]
+}
+
 /// One of the 22 caliper dimensions of the seed paper's Table 1 (spec section 1).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
 pub enum Dimension {

@@ -91,6 +91,10 @@ enum Command {
         /// The sex whose anthropometry --percentile reads.
         #[arg(long, value_enum, requires = "percentile")]
         sex: Option<ergohand::synth::procedural::Sex>,
+        /// Also write the optional fingertip markers T_TIP..L_TIP into the static reference
+        /// trial (an extension of the spec; `reconstruct` fits the skin's fingertips to them).
+        #[arg(long)]
+        tip_markers: bool,
         /// Replace a non-empty output folder.
         #[arg(long)]
         force: bool,
@@ -282,10 +286,12 @@ fn main() -> ExitCode {
             no_motions,
             percentile,
             sex,
+            tip_markers,
             force,
         } => cli::percentile_hand(body, sex, percentile).and_then(|percentile_hand| {
             let opts = ergohand::synth::SynthOptions {
                 percentile_hand,
+                tip_markers,
                 ..cli::synth_options(
                     seed,
                     preset,

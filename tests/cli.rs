@@ -2037,3 +2037,79 @@ fn a_template_folder_is_used_end_to_end() {
     let line = error_line(&p);
     assert!(line.contains("report.json") && line.contains(t), "{line}");
 }
+
+/// The optional fingertip markers through the commands: `synth --tip-markers` writes them into
+/// the static trial, `reconstruct` fits the skin's fingertips to them (their residuals in
+/// `report.json`) and aims every digit's last joint at them (in `link_model.json`), and the
+/// same subject without the flag has neither.
+#[test]
+fn fingertip_markers_go_from_synth_to_the_model() {
+    let dir = tempfile::tempdir().unwrap();
+    let run = |name: &str, tips: bool| -> (serde_json::Value, serde_json::Value) {
+        let (subj, out) = (
+            dir.path().join(name),
+            dir.path().join(format!("{name}-out")),
+        );
+        let mut a = vec![
+            "synth",
+            "--seed",
+            "9",
+            "--out",
+            subj.to_str().unwrap(),
+            "--duration",
+            "6",
+            "--no-motions",
+            "-q",
+        ];
+        if tips {
+            a.push("--tip-markers");
+        }
+        let g = ergohand(&a);
+        assert!(g.status.success(), "{}", stderr(&g));
+        let r = ergohand(&[
+            "reconstruct",
+            subj.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+            "-q",
+        ]);
+        assert!(r.status.success(), "{}", stderr(&r));
+        let read = |f: &str| -> serde_json::Value {
+            serde_json::from_str(&std::fs::read_to_string(out.join(f)).unwrap()).unwrap()
+        };
+        (read("report.json"), read("link_model.json"))
+    };
+    let (plain, plain_model) = run("plain", false);
+    let (tipped, tipped_model) = run("tipped", true);
+    let tips = |r: &serde_json::Value| -> Vec<String> {
+        r["skin"]["landmark_residuals_mm"]
+            .as_object()
+            .unwrap()
+            .keys()
+            .filter(|k| k.ends_with("_TIP"))
+            .cloned()
+            .collect()
+    };
+    assert!(tips(&plain).is_empty());
+    assert_eq!(tips(&tipped), ["I_TIP", "L_TIP", "M_TIP", "R_TIP", "T_TIP"]);
+    for k in tips(&tipped) {
+        let r = tipped["skin"]["landmark_residuals_mm"][&k]
+            .as_f64()
+            .unwrap();
+        assert!(r < 0.5, "{k}: {r} mm from its marker");
+    }
+    // The distal joints' long axes (third row of each frame) turn toward the markers.
+    let z = |m: &serde_json::Value, j: &str| -> [f64; 3] {
+        let r = &m["joints"][j]["frame"][2];
+        [0, 1, 2].map(|k| r[k].as_f64().unwrap())
+    };
+    let angle = |a: [f64; 3], b: [f64; 3]| {
+        let d: f64 = (0..3).map(|k| a[k] * b[k]).sum();
+        d.clamp(-1.0, 1.0).acos().to_degrees()
+    };
+    let turned = ["T_IP", "I_DIP", "M_DIP", "R_DIP", "L_DIP"]
+        .iter()
+        .filter(|j| angle(z(&plain_model, j), z(&tipped_model, j)) > 0.5)
+        .count();
+    assert!(turned >= 3, "{turned} distal frames turned");
+}

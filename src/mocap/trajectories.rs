@@ -6,7 +6,7 @@
 //! `[labels]` mapping; a missing sample (a C3D residual below zero or non-finite coordinates,
 //! spec section 2) is `None`.
 
-use crate::anatomy::{arm_markers, landmark_names, Link};
+use crate::anatomy::{arm_markers, landmark_names, tip_marker_names, Link};
 use crate::error::{Error, Result};
 use crate::geometry::Point;
 use std::collections::BTreeMap;
@@ -217,7 +217,10 @@ fn label_preview(labels: &[String]) -> String {
 /// Whether `name` is a marker name of the subject-format spec (section 2): a landmark of the
 /// reference trial, a palm or forearm marker, or a plate marker `<LINK>_1..3` of any link.
 pub fn is_spec_marker_name(name: &str) -> bool {
-    if landmark_names().contains(&name) || arm_markers().contains(&name) {
+    if landmark_names().contains(&name)
+        || tip_marker_names().contains(&name)
+        || arm_markers().contains(&name)
+    {
         return true;
     }
     Link::ALL
@@ -320,10 +323,11 @@ mod tests {
             "T_META_3",
             "WRIST_RAD",
             "L_DIP",
+            "M_TIP",
         ] {
             assert!(is_spec_marker_name(n), "{n}");
         }
-        for n in ["PALM_5", "I_PROX_4", "palm_1", "LHand1", ""] {
+        for n in ["PALM_5", "I_PROX_4", "palm_1", "LHand1", "X_TIP", ""] {
             assert!(!is_spec_marker_name(n), "{n}");
         }
     }

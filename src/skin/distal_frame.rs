@@ -13,6 +13,12 @@
 //! template's distal region onto the fitted skin's (Horn's absolute orientation of the two
 //! centred point sets, no scale) carries the template's distal z onto the subject's; it is then
 //! made normal to the subject's hinge axis, which the calibration measured and which is kept.
+//!
+//! Where a lab placed the optional fingertip markers (`X_TIP`, on the apex, where the phalanx's
+//! long axis leaves the skin), the line from the distal joint's centre to the marker is the
+//! phalanx itself, and [`distal_frames_at_tips`] aims the frame along it instead: the homology
+//! carries the template's fingertip, whose nail may sit otherwise over the bone than the
+//! subject's.
 
 use crate::anatomy::{Finger, Joint};
 use crate::geometry::{absolute_orientation, Point, TriMesh};
@@ -50,6 +56,25 @@ pub fn distal_frames_by_homology(
         };
         let t = template.joint(j);
         out.aim_long_axis(j, &(reg.rotation * t.z()), &(reg.rotation * t.y()));
+    }
+    out
+}
+
+/// Re-aim the last joint of each digit in `tips` (digit, fitted skin point of its fingertip
+/// marker) from the joint's centre at that point. The fingertip marker sits where the distal
+/// phalanx's long axis leaves the skin, so this line is the phalanx itself, where the
+/// homology of [`distal_frames_by_homology`] carries the template's fingertip shape (a nail
+/// set higher or lower over the bone turns it). Axes and centres are kept; a point at the
+/// centre, or along the axis, leaves the frame as it was.
+pub fn distal_frames_at_tips(model: &Skeleton, tips: &[(Finger, Point)]) -> Skeleton {
+    let mut out = model.clone();
+    for &(f, p) in tips {
+        let j: Joint = f.joints()[2];
+        let long = p - model.centre(j);
+        if long.norm() > 1e-6 {
+            let dorsal = model.joint(j).y();
+            out.aim_long_axis(j, &long.normalize(), &dorsal);
+        }
     }
     out
 }

@@ -20,7 +20,9 @@ pub mod true_contacts;
 pub mod true_hand;
 pub mod voxel_scan;
 
-use crate::anatomy::{landmark_names, palm_markers, Dimension, Finger, Joint, Link, Side};
+use crate::anatomy::{
+    landmark_names, palm_markers, tip_marker_names, Dimension, Finger, Joint, Link, Side,
+};
 use crate::error::{Error, Result};
 use crate::geometry::closest_point::AabbTree;
 use crate::geometry::{Point, TriMesh, Vec3};
@@ -256,6 +258,17 @@ pub struct SynthOptions {
     /// `truth.json` when `None`, so drawn subjects stay byte-identical.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub percentile_hand: Option<(procedural::Sex, f64)>,
+    /// Write the optional fingertip markers (`T_TIP`..`L_TIP`, an extension of the spec) into
+    /// the static reference trial, placed as the other landmarks are (on the true skin where
+    /// the distal phalanx's long axis leaves it, the lab's placement error, the marker offset).
+    /// Their draws come from streams of their own: every other file is the same with or without
+    /// them. Not written to `truth.json` when false.
+    #[serde(default, skip_serializing_if = "is_false")]
+    pub tip_markers: bool,
+}
+
+fn is_false(v: &bool) -> bool {
+    !*v
 }
 
 fn is_zero(v: &u32) -> bool {
@@ -294,6 +307,7 @@ impl SynthOptions {
             trial_repeat: 0,
             motion_s: None,
             percentile_hand: None,
+            tip_markers: false,
         }
     }
 }
@@ -488,22 +502,22 @@ pub fn simulate_with(opts: &SynthOptions, err: &ErrorModel) -> Result<SyntheticS
     };
     let skin_tree = AabbTree::new(&true_skin);
     let skin_normals = true_skin.vertex_normals();
+    let place = |name: &str, rng: &mut Rng| -> Point {
+        let (p, n) = hand.landmarks[name];
+        placed_landmark(
+            &skin_tree,
+            &skin_normals,
+            &p,
+            &n,
+            opts.marker_offset_mm,
+            err.landmark_sd_mm,
+            rng,
+        )
+    };
     let mut place_rng = session("landmark-placement");
     let placed: BTreeMap<&str, Point> = landmark_names()
         .into_iter()
-        .map(|name| {
-            let (p, n) = hand.landmarks[name];
-            let q = placed_landmark(
-                &skin_tree,
-                &skin_normals,
-                &p,
-                &n,
-                opts.marker_offset_mm,
-                err.landmark_sd_mm,
-                &mut place_rng,
-            );
-            (name, q)
-        })
+        .map(|name| (name, place(name, &mut place_rng)))
         .collect();
     let mut palm_rng = session("palm-sta");
     let palm_defs: Vec<MarkerDef> = palm_markers()
@@ -626,8 +640,8 @@ pub fn simulate_with(opts: &SynthOptions, err: &ErrorModel) -> Result<SyntheticS
     } else {
         root.fork(&format!("reference-trial-repeat-{}", opts.repeat))
     };
-    let names = landmark_names();
-    let positions = names
+    let mut names = landmark_names();
+    let mut positions: Vec<Vec<Option<Point>>> = names
         .iter()
         .map(|n| {
             let p = placed[n];
@@ -636,6 +650,19 @@ pub fn simulate_with(opts: &SynthOptions, err: &ErrorModel) -> Result<SyntheticS
                 .collect()
         })
         .collect();
+    if opts.tip_markers {
+        let mut tip_place = session("tip-placement");
+        let mut tip_noise = session("reference-trial-tips");
+        for name in tip_marker_names() {
+            let q = place(name, &mut tip_place);
+            names.push(name);
+            positions.push(
+                (0..REFERENCE_FRAMES)
+                    .map(|_| Some(q + tip_noise.gauss3(err.noise_mm)))
+                    .collect(),
+            );
+        }
+    }
     let reference = Trajectories {
         frame_rate: FRAME_RATE,
         labels: names.iter().map(|s| s.to_string()).collect(),
@@ -1317,6 +1344,59 @@ mod tests {
         for m in palm_markers() {
             let static_at = b.get(m, 0).unwrap();
             assert!((placed.trials["index"].get(m, 0).unwrap() - static_at).norm() < 1e-9);
+        }
+    }
+
+    /// The optional fingertip markers join the static trial only, placed as the landmarks are
+    /// (at the marker offset from the true skin, where the distal bone's line leaves it), and
+    /// change nothing else: every other marker of every trial, and the truth, are the same.
+    #[test]
+    fn fingertip_markers_join_the_static_trial_and_change_nothing_else() {
+        for body in [Body::Template, Body::Procedural] {
+            let opts = SynthOptions {
+                body,
+                ..short(38, Preset::Typical)
+            };
+            let plain = simulate(&opts).unwrap();
+            let tipped = simulate(&SynthOptions {
+                tip_markers: true,
+                ..opts.clone()
+            })
+            .unwrap();
+            assert_eq!(plain.truth.joints, tipped.truth.joints);
+            assert_eq!(plain.subject.dimensions, tipped.subject.dimensions);
+            for (k, a) in &plain.trials {
+                let b = &tipped.trials[k];
+                for n in &a.labels {
+                    assert_eq!(a.track(n), b.track(n), "{body:?} {k} {n}");
+                }
+                let extra: Vec<&String> =
+                    b.labels.iter().filter(|n| !a.labels.contains(n)).collect();
+                if k == "reference" {
+                    assert_eq!(extra.len(), 5, "{body:?}");
+                } else {
+                    assert!(extra.is_empty(), "{body:?} {k}: {extra:?}");
+                }
+            }
+            let tree = AabbTree::new(&tipped.true_skin);
+            let sk = &tipped.true_skeleton;
+            for f in Finger::ALL {
+                let m = tipped.trials["reference"]
+                    .mean_position(&format!("{}_TIP", f.letter()), 0..REFERENCE_FRAMES)
+                    .unwrap();
+                let d = tree.distance(&m).unwrap();
+                assert!(
+                    (d - opts.marker_offset_mm).abs() < 0.5,
+                    "{body:?} {f:?}: {d:.2}"
+                );
+                // Beyond the bone's end, near its line (the lab's placement is a few mm off).
+                let c = sk.centre(f.joints()[2]);
+                let bone = sk.tips[f as usize] - c;
+                let along = (m - c).dot(&bone.normalize());
+                assert!(along > bone.norm(), "{body:?} {f:?}");
+                let off = ((m - c) - bone.normalize() * along).norm();
+                assert!(off < 6.0, "{body:?} {f:?}: {off:.1} mm off the line");
+            }
         }
     }
 

@@ -5,7 +5,7 @@
 
 use super::anthropometry::{shape_hand, ShapeParams};
 use super::surface_field;
-use crate::anatomy::landmark_names;
+use crate::anatomy::{landmark_names, tip_marker_names};
 use crate::error::{Error, Result};
 use crate::geometry::{Point, TriMesh, Vec3};
 use crate::rng::Rng;
@@ -83,7 +83,7 @@ pub fn template_body(template: &TemplateHand, root: &Rng, posture: Pose) -> Resu
     let skeleton = posed_skeleton(&shaped.skeleton, &tf);
     let normals = skin.vertex_normals();
     let mut landmarks = BTreeMap::new();
-    for name in landmark_names() {
+    for name in landmark_names().into_iter().chain(tip_marker_names()) {
         let v = template
             .spec
             .landmark(name)

@@ -5,7 +5,8 @@
 //! * **dorsal ray**: cast a ray from a point inside the hand (a joint centre, or a point along a
 //!   bone) along a direction; the landmark is the vertex of the first face hit that is nearest
 //!   to the hit point. Used for the markers a lab puts on the back of a joint, on a nail or on a
-//!   bone (the joint markers, `PALM_*`, `*_NAIL`, `T_MC_*`).
+//!   bone (the joint markers, `PALM_*`, `*_NAIL`, `T_MC_*`), and along the distal phalanx's
+//!   long axis for the optional fingertip markers (`*_TIP`).
 //! * **caliper extreme**: among the vertices in a thin slab through a point, perpendicular to the
 //!   link, and within a radius of it, the one furthest along a direction. A caliper's jaws touch
 //!   exactly these extremes, so each dimension is the pair of opposite extremes (`*_breadth_*`
@@ -146,6 +147,15 @@ pub fn derive_hand_spec(
         put(
             &format!("{}_NAIL", f.letter()),
             ray_vertex(mesh, &origin, &sk.joint(dj).y()),
+        )?;
+    }
+    // Fingertips (optional markers): where the distal phalanx's long axis, from the distal
+    // joint's centre through the bone's end, leaves the skin.
+    for f in Finger::ALL {
+        let c = sk.centre(f.joints()[2]);
+        put(
+            &format!("{}_TIP", f.letter()),
+            ray_vertex(mesh, &c, &(sk.tips[f as usize] - c)),
         )?;
     }
     // Two markers on the thumb metacarpal, at 1/3 and 2/3 of it, dorsal.

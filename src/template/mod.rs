@@ -187,6 +187,26 @@ mod tests {
                 assert!(r.dot(&sk.joint(j).y()) > 0.8 * r.norm(), "{side} {j}");
                 assert!((2.0..25.0).contains(&r.norm()), "{side} {j}: {}", r.norm());
             }
+            // Fingertip markers: the apex of the distal link, on the line of its bone and
+            // within a millimetre of the link's farthest vertex along it.
+            let owners = dominant_links(&t.weights);
+            for f in crate::anatomy::Finger::ALL {
+                let j = f.joints()[2];
+                let c = sk.centre(j);
+                let bone = (sk.tips[f as usize] - c).normalize();
+                let tip = v(&format!("{}_TIP", f.letter())) - c;
+                let link = f.links()[2].index();
+                let reach = (0..t.mesh.n_vertices())
+                    .filter(|&k| owners[k] == link)
+                    .map(|k| (t.mesh.vertices[k] - c).dot(&bone))
+                    .fold(f64::MIN, f64::max);
+                assert!(tip.dot(&bone) > reach - 1.0, "{side} {f:?}");
+                let off_line = (tip - bone * tip.dot(&bone)).norm();
+                assert!(
+                    off_line < 1.5,
+                    "{side} {f:?}: {off_line:.2} mm off the bone's line"
+                );
+            }
             // Radial landmarks lie radially of ulnar ones.
             let radial = sk.centre(Joint::IMcp) - sk.centre(Joint::LMcp);
             assert!((v("I_MCP_LAT") - v("L_MCP_LAT")).dot(&radial) > 0.0);

@@ -6,7 +6,7 @@
 //! [`super::landmark_rule`] (`ergohand template --out DIR` writes it again) and checked against
 //! that rule by a test, so every index has a provenance.
 
-use crate::anatomy::{landmark_names, Dimension, Joint, Side};
+use crate::anatomy::{landmark_names, tip_marker_names, Dimension, Joint, Side};
 use crate::error::{Error, Result};
 use crate::geometry::TriMesh;
 use serde::{Deserialize, Serialize};
@@ -28,7 +28,9 @@ pub struct HandSpec {
     pub vertices: usize,
     /// Face count of that mesh.
     pub faces: usize,
-    /// Landmark name (spec section 2) -> vertex index.
+    /// Landmark name (spec section 2, and the optional fingertip markers `X_TIP`) -> vertex
+    /// index. A lab's spec written before the fingertip markers existed has none; the skin fit
+    /// then leaves such markers out.
     pub landmarks: BTreeMap<String, usize>,
     /// Vertex indices of `PALM_1`..`PALM_4`, the markers of the pre-alignment (seed paper 3.5).
     pub palm: [usize; 4],
@@ -123,11 +125,17 @@ impl HandSpec {
                 _ => {}
             }
         }
-        if let Some(k) = self
-            .landmarks
-            .keys()
-            .find(|k| !landmark_names().contains(&k.as_str()))
-        {
+        for name in tip_marker_names() {
+            match self.landmarks.get(name) {
+                Some(&v) if v >= mesh.n_vertices() => {
+                    return bad(format!("landmark '{name}' names vertex {v}, out of range"))
+                }
+                _ => {}
+            }
+        }
+        if let Some(k) = self.landmarks.keys().find(|k| {
+            !landmark_names().contains(&k.as_str()) && !tip_marker_names().contains(&k.as_str())
+        }) {
             return bad(format!(
                 "'{k}' is not a landmark of the subject-format spec"
             ));

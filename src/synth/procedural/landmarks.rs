@@ -3,7 +3,8 @@
 //! centres for the joint markers, from 60 % along the distal bone for the nails (the middle of
 //! the nail plate), from points along the 2nd and 5th metacarpals for `PALM_1..4` (20 % and 85 %
 //! of the way from the head to the base) and along the thumb's metacarpal for `T_MC_1/2` (1/3,
-//! 2/3); the lateral landmarks `I_MCP_LAT`, `L_MCP_LAT`, `WRIST_RAD`, `WRIST_ULN` as the
+//! 2/3); the optional fingertip markers along the distal phalanx's long axis from the distal
+//! joint's centre; the lateral landmarks `I_MCP_LAT`, `L_MCP_LAT`, `WRIST_RAD`, `WRIST_ULN` as the
 //! caliper extremes of the section at the joint (the thumb left out, as a caliper across the
 //! metacarpal heads or the wrist does). Points lie on the polygonised skin; normals are the
 //! implicit field's gradient there.
@@ -58,6 +59,11 @@ pub fn place_landmarks(
             c + (sk.tips[f as usize] - c) * 0.6,
             sk.joint(dj).y(),
         )?;
+    }
+    // The optional fingertip markers: where the distal phalanx's long axis leaves the skin.
+    for f in Finger::ALL {
+        let c = sk.centre(f.joints()[2]);
+        ray(&format!("{}_TIP", f.letter()), c, sk.tips[f as usize] - c)?;
     }
     let (cmc, mcp) = (sk.centre(Joint::TCmc), sk.centre(Joint::TMcp));
     for (k, t) in [(1, 1.0 / 3.0), (2, 2.0 / 3.0)] {
