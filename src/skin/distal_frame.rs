@@ -60,8 +60,8 @@ pub fn distal_frames_by_homology(
     out
 }
 
-/// Re-aim the last joint of each digit in `tips` (digit, fitted skin point of its fingertip
-/// marker) from the joint's centre at that point. The fingertip marker sits where the distal
+/// Re-aim the last joint of each digit in `tips` (digit, its fingertip marker) from the
+/// joint's centre at that point. The fingertip marker sits where the distal
 /// phalanx's long axis leaves the skin, so this line is the phalanx itself, where the
 /// homology of [`distal_frames_by_homology`] carries the template's fingertip shape (a nail
 /// set higher or lower over the bone turns it). Axes and centres are kept; a point at the

@@ -529,7 +529,7 @@ pub fn fit_skin(
         &high,
         &owners,
     );
-    // Where a fingertip marker was fitted, the line from the distal joint to it is the phalanx.
+    // Where a fingertip marker was given, the line from the distal joint to it is the phalanx.
     // Aimed at the marker itself: the apex's normal runs along that line, so the marker's
     // offset does not turn it, where the fitted vertex carries the fitted normal's tilt too.
     let tip_points: Vec<(Finger, Point)> = Finger::ALL
@@ -1256,7 +1256,7 @@ mod tests {
     }
 
     /// A fingertip marker the template spec has no vertex for (a lab's spec written before
-    /// they existed) is left out with a warning naming it, and the fit is the fit without it.
+    /// they existed) is left out with a warning naming it.
     #[test]
     fn a_fingertip_marker_the_template_cannot_place_is_left_out_and_named() {
         let (s, mut t, model) = subject_template_model_with(
