@@ -62,6 +62,17 @@ impl Finger {
         }
     }
 
+    /// The name of this digit's optional fingertip marker (see [`tip_marker_names`]).
+    pub fn tip_marker(self) -> &'static str {
+        match self {
+            Finger::Thumb => "T_TIP",
+            Finger::Index => "I_TIP",
+            Finger::Middle => "M_TIP",
+            Finger::Ring => "R_TIP",
+            Finger::Little => "L_TIP",
+        }
+    }
+
     /// The trial key in `subject.toml`: `thumb`, `index`, ...
     pub fn trial_name(self) -> &'static str {
         match self {
@@ -345,7 +356,7 @@ pub fn landmark_names() -> Vec<&'static str> {
 /// lab places them the skin's fingertips, and the distal frames carried by the skin, follow
 /// them; without them the template shapes the fingertips alone.
 pub fn tip_marker_names() -> [&'static str; 5] {
-    ["T_TIP", "I_TIP", "M_TIP", "R_TIP", "L_TIP"]
+    Finger::ALL.map(Finger::tip_marker)
 }
 
 /// One of the 22 caliper dimensions of the seed paper's Table 1 (spec section 1).

@@ -33,7 +33,7 @@ use super::shape_prior::{
 use super::simplify::simplify_qem;
 use super::transfer::{bind, transfer};
 use super::unfold::{bone_carried_normals, face_turn, unfold_skin, FaceTurn, UNFOLD_PASSES};
-use crate::anatomy::{landmark_names, palm_markers, tip_marker_names, Dimension, Finger, Joint};
+use crate::anatomy::{landmark_names, palm_markers, Dimension, Finger, Joint};
 use crate::error::{Error, Result};
 use crate::geometry::{absolute_orientation, Point, TriMesh, Vec3};
 use crate::link::LinkModel;
@@ -233,12 +233,14 @@ pub fn fit_skin(
     let mut names = landmark_names();
     reference.require(&names)?;
     // The optional fingertip markers the trial carries, read with the landmarks.
-    let tips_in_trial: Vec<&'static str> = tip_marker_names()
+    let tips_in_trial: Vec<Finger> = Finger::ALL
         .into_iter()
-        .filter(|n| reference.index_of(n).is_some())
+        .filter(|f| reference.index_of(f.tip_marker()).is_some())
         .collect();
+    let mut read: Vec<&str> = names.clone();
+    read.extend(tips_in_trial.iter().map(|f| f.tip_marker()));
     // The static trial's markers, read once: every step below fits or measures against them.
-    let markers = reference.mean_positions(&[names.clone(), tips_in_trial.clone()].concat());
+    let markers = reference.mean_positions(&read);
     if let Some(n) = names.iter().find(|n| !markers.contains_key(**n)) {
         return Err(Error::input(
             &reference.source,
@@ -253,8 +255,9 @@ pub fn fit_skin(
     // shapes the fingertips better than a marker placed by eye pinning the apex does (on four
     // procedural subjects the fingertips were 1.3-1.8 mm off with the prior alone, 2.1-2.4 with
     // both), and it would move a pinned apex a second time.
-    let mut tips_used: Vec<&'static str> = Vec::new();
-    for n in tips_in_trial {
+    let mut tips_used: Vec<(Finger, Point)> = Vec::new();
+    for f in tips_in_trial {
+        let n = f.tip_marker();
         if !markers.contains_key(n) {
             warnings.push(format!(
                 "skin: fingertip marker {n} has no valid sample in {}; that fingertip follows \
@@ -269,7 +272,7 @@ pub fn fit_skin(
                  its template-spec.toml derives every landmark by the rule)"
             ));
         } else {
-            tips_used.push(n);
+            tips_used.push((f, markers[n]));
             if opts.shape_prior.is_none() {
                 names.push(n);
             }
@@ -532,14 +535,7 @@ pub fn fit_skin(
     // Where a fingertip marker was given, the line from the distal joint to it is the phalanx.
     // Aimed at the marker itself: the apex's normal runs along that line, so the marker's
     // offset does not turn it, where the fitted vertex carries the fitted normal's tilt too.
-    let tip_points: Vec<(Finger, Point)> = Finger::ALL
-        .iter()
-        .filter_map(|&f| {
-            let n = format!("{}_TIP", f.letter());
-            tips_used.contains(&n.as_str()).then(|| (f, markers[&n]))
-        })
-        .collect();
-    let aimed = distal_frames_at_tips(&aimed, &tip_points);
+    let aimed = distal_frames_at_tips(&aimed, &tips_used);
     let measure_skeleton = &aimed;
     // The hinges whose depth the skin gives (with a link model to weigh it against): those
     // whose thickness a caliper fixed, the template's centre carried by the ring of skin around
@@ -811,6 +807,7 @@ pub(crate) fn caliper_warnings(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::anatomy::tip_marker_names;
     use crate::geometry::closest_point::AabbTree;
     use crate::synth::{simulate_with, Preset, SynthOptions};
     use crate::template::load_template;

@@ -1382,7 +1382,7 @@ mod tests {
             let sk = &tipped.true_skeleton;
             for f in Finger::ALL {
                 let m = tipped.trials["reference"]
-                    .mean_position(&format!("{}_TIP", f.letter()), 0..REFERENCE_FRAMES)
+                    .mean_position(f.tip_marker(), 0..REFERENCE_FRAMES)
                     .unwrap();
                 let d = tree.distance(&m).unwrap();
                 assert!(

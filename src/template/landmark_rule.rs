@@ -154,7 +154,7 @@ pub fn derive_hand_spec(
     for f in Finger::ALL {
         let c = sk.centre(f.joints()[2]);
         put(
-            &format!("{}_TIP", f.letter()),
+            f.tip_marker(),
             ray_vertex(mesh, &c, &(sk.tips[f as usize] - c)),
         )?;
     }

@@ -194,7 +194,7 @@ mod tests {
                 let j = f.joints()[2];
                 let c = sk.centre(j);
                 let bone = (sk.tips[f as usize] - c).normalize();
-                let tip = v(&format!("{}_TIP", f.letter())) - c;
+                let tip = v(f.tip_marker()) - c;
                 let link = f.links()[2].index();
                 let reach = (0..t.mesh.n_vertices())
                     .filter(|&k| owners[k] == link)

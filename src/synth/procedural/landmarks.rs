@@ -63,7 +63,7 @@ pub fn place_landmarks(
     // The optional fingertip markers: where the distal phalanx's long axis leaves the skin.
     for f in Finger::ALL {
         let c = sk.centre(f.joints()[2]);
-        ray(&format!("{}_TIP", f.letter()), c, sk.tips[f as usize] - c)?;
+        ray(f.tip_marker(), c, sk.tips[f as usize] - c)?;
     }
     let (cmc, mcp) = (sk.centre(Joint::TCmc), sk.centre(Joint::TMcp));
     for (k, t) in [(1, 1.0 / 3.0), (2, 2.0 / 3.0)] {
