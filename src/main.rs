@@ -95,6 +95,10 @@ enum Command {
         /// trial (an extension of the spec; `reconstruct` fits the skin's fingertips to them).
         #[arg(long)]
         tip_markers: bool,
+        /// The fingertip markers of --tip-markers, kept on through the grasp motion trials
+        /// (`track` fits the distal links to them); implies --tip-markers.
+        #[arg(long)]
+        tip_markers_worn: bool,
         /// Replace a non-empty output folder.
         #[arg(long)]
         force: bool,
@@ -287,11 +291,13 @@ fn main() -> ExitCode {
             percentile,
             sex,
             tip_markers,
+            tip_markers_worn,
             force,
         } => cli::percentile_hand(body, sex, percentile).and_then(|percentile_hand| {
             let opts = ergohand::synth::SynthOptions {
                 percentile_hand,
-                tip_markers,
+                tip_markers: tip_markers || tip_markers_worn,
+                tip_markers_worn,
                 ..cli::synth_options(
                     seed,
                     preset,

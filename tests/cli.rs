@@ -2113,3 +2113,114 @@ fn fingertip_markers_go_from_synth_to_the_model() {
         .count();
     assert!(turned >= 3, "{turned} distal frames turned");
 }
+
+/// Fingertip markers worn through a grasp trial (an extension of the spec): `track` attaches
+/// them from the static trial and fits the distal links to them. The same trial without them
+/// (synth draws them from streams of their own, so every other marker is the same) is tracked
+/// beside it on the same model; against synth's record of the motion the fingertips come
+/// nearer with the markers worn.
+#[test]
+fn fingertip_markers_worn_in_a_grasp_are_tracked() {
+    let dir = tempfile::tempdir().unwrap();
+    let synth = |name: &str, tips: bool| {
+        let subj = dir.path().join(name);
+        let mut a = vec![
+            "synth",
+            "--seed",
+            "9",
+            "--out",
+            subj.to_str().unwrap(),
+            "--duration",
+            "6",
+            "--motion-s",
+            "3",
+            "-q",
+        ];
+        if tips {
+            a.push("--tip-markers-worn");
+        }
+        let g = ergohand(&a);
+        assert!(g.status.success(), "{}", stderr(&g));
+        subj
+    };
+    let (plain, tipped) = (synth("plain", false), synth("tipped", true));
+    // The plain trial beside the worn one, in the tipped subject's folder.
+    std::fs::copy(
+        plain.join("trials/grasp_bottle.c3d"),
+        tipped.join("trials/grasp_plain.c3d"),
+    )
+    .unwrap();
+    let toml = tipped.join("subject.toml");
+    let text = std::fs::read_to_string(&toml).unwrap();
+    std::fs::write(
+        &toml,
+        text + "\"grasp_plain\" = \"trials/grasp_plain.c3d\"\n",
+    )
+    .unwrap();
+    let model = dir.path().join("model");
+    let (s, m) = (tipped.to_str().unwrap(), model.to_str().unwrap());
+    let r = ergohand(&["reconstruct", s, "--out", m, "-q"]);
+    assert!(r.status.success(), "{}", stderr(&r));
+    let read = |p: &Path| -> serde_json::Value {
+        serde_json::from_str(&std::fs::read_to_string(p).unwrap()).unwrap()
+    };
+    let truth = read(&tipped.join("truth_motion/grasp_bottle.json"));
+    let frames = truth["frames"].as_u64().unwrap() as usize;
+    let point = |v: &serde_json::Value| -> [f64; 3] { [0, 1, 2].map(|k| v[k].as_f64().unwrap()) };
+    let track = |motion: &str| -> serde_json::Value {
+        let out = dir.path().join(motion);
+        let r = ergohand(&[
+            "track",
+            s,
+            "--model",
+            m,
+            "--motion",
+            motion,
+            "--out",
+            out.to_str().unwrap(),
+            "-q",
+        ]);
+        assert!(r.status.success(), "{}", stderr(&r));
+        read(&out.join("motion.json"))
+    };
+    // RMS of the tracked fingertips against the truth's over every frame and digit, mm.
+    let tip_rms = |got: &serde_json::Value| -> f64 {
+        let (mut ss, mut n) = (0.0, 0);
+        for (f, t) in truth["tips"].as_object().unwrap() {
+            for k in 0..frames {
+                let d = distance(point(&got["tips"][f][k]), point(&t[k]));
+                ss += d * d;
+                n += 1;
+            }
+        }
+        (ss / n as f64).sqrt()
+    };
+    let worn = track("grasp_bottle");
+    let bare = track("grasp_plain");
+    // Worn markers are fitted: each one's median residual is of the order of the noise and its
+    // slide (the mean is not: swapped labels and outliers are in it).
+    for f in ["T", "I", "M", "R", "L"] {
+        let name = format!("{f}_TIP");
+        let mut res: Vec<f64> = worn["marker_residual_mm"][&name]
+            .as_array()
+            .unwrap_or_else(|| panic!("{name} not tracked"))
+            .iter()
+            .filter_map(|v| v.as_f64())
+            .collect();
+        assert!(res.len() > frames / 2, "{name}: {} samples", res.len());
+        res.sort_by(f64::total_cmp);
+        let median = res[res.len() / 2];
+        assert!(median < 1.0, "{name}: median residual {median:.2} mm");
+        // Attached from the static trial but never seen in the bare trial: no residual.
+        let none = bare["marker_residual_mm"][&name]
+            .as_array()
+            .is_none_or(|a| a.iter().all(|v| v.is_null()));
+        assert!(none, "{name} has residuals in a trial without it");
+    }
+    let (with, without) = (tip_rms(&worn), tip_rms(&bare));
+
+    assert!(
+        with < without,
+        "fingertips {with:.2} mm with the markers worn, {without:.2} without"
+    );
+}

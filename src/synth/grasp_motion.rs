@@ -204,6 +204,8 @@ pub struct GraspTrial {
     pub truth: MotionTruth,
     /// The skin markers' definitions (for tests).
     pub markers: Vec<MarkerDef>,
+    /// The optional markers' definitions ([`GraspInputs::extra`]).
+    pub extra: Vec<MarkerDef>,
     /// The forearm's rigid motion per frame (the pose's root).
     pub root: Vec<Isometry3<f64>>,
     /// The part's true pose per frame (part frame -> lab).
@@ -220,8 +222,9 @@ pub fn task_scene(task: &GraspTask) -> Result<Scene> {
 }
 
 /// Which link a landmark marker rides (spec section 5): a joint's dorsal marker the link
-/// proximal to the joint, a nail the distal link, the thumb metacarpal's two markers `T_META`,
-/// the MCP laterals and palm markers `PALM`, the styloids `ARM`.
+/// proximal to the joint, a nail or a fingertip marker (an extension of the spec) the distal
+/// link, the thumb metacarpal's two markers `T_META`, the MCP laterals and palm markers `PALM`,
+/// the styloids `ARM`.
 pub fn landmark_link(name: &str) -> Option<Link> {
     if let Some(j) = Joint::from_name(name) {
         return Some(j.parent_link());
@@ -235,14 +238,19 @@ pub fn landmark_link(name: &str) -> Option<Link> {
         "T_MC_1" | "T_MC_2" => Link::TMeta,
         "I_MCP_LAT" | "L_MCP_LAT" | "PALM_1" | "PALM_2" | "PALM_3" | "PALM_4" => Link::Palm,
         "WRIST_RAD" | "WRIST_ULN" | "ARM_1" | "ARM_2" | "ARM_3" => Link::Arm,
-        _ => return None,
+        _ => {
+            return Finger::ALL
+                .into_iter()
+                .find(|f| f.tip_marker() == name)
+                .map(|f| f.links()[2])
+        }
     })
 }
 
 /// The joint whose flexion slides the skin under a landmark marker, and the slide's scale
 /// relative to the skin range: the dorsal skin over a knuckle is stretched over it as the joint
-/// flexes (the most), over the thumb metacarpal by the MCP, at a nail by the DIP (little: the
-/// nail is stiff), at the MCP laterals by their MCP, at the styloids by the wrist.
+/// flexes (the most), over the thumb metacarpal by the MCP, at a nail or a fingertip by the DIP
+/// (little), at the MCP laterals by their MCP, at the styloids by the wrist.
 fn landmark_driver(name: &str) -> (Joint, f64) {
     if let Some(j) = Joint::from_name(name) {
         return (j, 2.0);
@@ -256,9 +264,14 @@ fn landmark_driver(name: &str) -> (Joint, f64) {
         "T_MC_1" | "T_MC_2" => Joint::TMcp,
         "I_MCP_LAT" => Joint::IMcp,
         "L_MCP_LAT" => Joint::LMcp,
-        _ => Joint::Wrist,
+        _ => match Finger::ALL.into_iter().find(|f| f.tip_marker() == name) {
+            Some(f) => f.joints()[2],
+            None => Joint::Wrist,
+        },
     };
-    (j, if name.ends_with("_NAIL") { 0.5 } else { 1.0 })
+    // The nail is stiff, and the pulp at the fingertip's end is held by its fibrous septa.
+    let stiff = name.ends_with("_NAIL") || name.ends_with("_TIP");
+    (j, if stiff { 0.5 } else { 1.0 })
 }
 
 /// The definition of a landmark's skin marker for a grasp trial: at `position` (its placed
@@ -521,11 +534,15 @@ pub struct GraspInputs<'a> {
     pub hand: &'a SkinnedHand,
     /// The skin, palm and forearm markers, placed as for the static trial.
     pub markers: Vec<MarkerDef>,
+    /// Optional skin markers (the fingertip markers, an extension of the spec), simulated from
+    /// draws of their own so that the other markers' tracks are the same with or without them.
+    pub extra: Vec<MarkerDef>,
 }
 
 /// Simulate the grasp `task` with the true hand of `inp`: `duration_s` seconds at `rate` Hz,
 /// noise `err.noise_mm` on every marker, the markers' skin slide, gaps and swaps by `gerr`, every
-/// draw from `rng`. Labels: the skin markers in `inp.markers` order, then `PART_1`..`PART_n`.
+/// draw from `rng`. Labels: the skin markers in `inp.markers` order, the optional ones in
+/// `inp.extra` order, then `PART_1`..`PART_n`.
 pub fn simulate_grasp(
     task: &GraspTask,
     inp: GraspInputs,
@@ -700,9 +717,13 @@ pub fn simulate_grasp(
         v.sort_by_key(|(k, _)| k[5..].parse::<u32>().unwrap_or(u32::MAX));
         v
     };
-    let mut labels: Vec<String> = defs.iter().map(|d| d.name.clone()).collect();
+    let extra = inp.extra;
+    let mut labels: Vec<String> = defs.iter().chain(&extra).map(|d| d.name.clone()).collect();
     labels.extend(part_markers.iter().map(|(k, _)| k.clone()));
+    // Track index of the m-th marker of the main order (skin markers, then the part's).
+    let main_track = |m: usize| if m < defs.len() { m } else { m + extra.len() };
     let mut noise = rng.fork("noise");
+    let mut extra_noise = rng.fork("noise-optional-markers");
     let mut positions: Vec<Vec<Option<Point>>> = vec![Vec::with_capacity(n); labels.len()];
     let mut joints: BTreeMap<String, JointTrack> = Joint::ALL
         .iter()
@@ -730,7 +751,12 @@ pub fn simulate_grasp(
             positions[m].push(Some(p));
         }
         for (k, (_, p)) in part_markers.iter().enumerate() {
-            positions[defs.len() + k].push(Some(part[f] * p + noise.gauss3(err.noise_mm)));
+            positions[main_track(defs.len() + k)]
+                .push(Some(part[f] * p + noise.gauss3(err.noise_mm)));
+        }
+        for (k, d) in extra.iter().enumerate() {
+            let p = tf[d.link.index()] * d.displaced(&angles[f]) + extra_noise.gauss3(err.noise_mm);
+            positions[defs.len() + k].push(Some(p));
         }
     }
 
@@ -738,14 +764,24 @@ pub fn simulate_grasp(
     // hides its current fraction of frames; a digit's fraction grows with the closure. The first
     // 0.1 s stays visible so that a tracker can start.
     let mut gap_rng = rng.fork("gaps");
-    let mut visible = Vec::with_capacity(labels.len());
-    for (m, label) in labels.iter().enumerate() {
-        let growth = if m >= defs.len() {
+    let mut extra_gap_rng = rng.fork("gaps-optional-markers");
+    let mut visible = vec![Vec::new(); labels.len()];
+    let order = (0..defs.len() + part_markers.len())
+        .map(main_track)
+        .chain(defs.len()..defs.len() + extra.len());
+    for m in order {
+        let is_extra = (defs.len()..defs.len() + extra.len()).contains(&m);
+        let growth = if m >= defs.len() + extra.len() {
             0.5
-        } else if matches!(defs[m].link, Link::Palm | Link::Arm) {
+        } else if m < defs.len() && matches!(defs[m].link, Link::Palm | Link::Arm) {
             0.0
         } else {
             1.0
+        };
+        let gap_rng = if is_extra {
+            &mut extra_gap_rng
+        } else {
+            &mut gap_rng
         };
         let mut vis = vec![true; n];
         let mean_len = 0.175 * rate;
@@ -763,8 +799,7 @@ pub fn simulate_grasp(
                 f += 1;
             }
         }
-        debug_assert_eq!(label, &labels[m]);
-        visible.push(vis);
+        visible[m] = vis;
     }
     for (track, vis) in positions.iter_mut().zip(&visible) {
         for (p, v) in track.iter_mut().zip(vis) {
@@ -826,6 +861,7 @@ pub fn simulate_grasp(
         .collect();
     let mut marker_links: BTreeMap<String, String> = defs
         .iter()
+        .chain(&extra)
         .map(|d| (d.name.clone(), d.link.name().to_string()))
         .collect();
     for (k, _) in &part_markers {
@@ -870,6 +906,7 @@ pub fn simulate_grasp(
         trajectories,
         truth,
         markers: defs,
+        extra,
         root,
         part,
         angles,
@@ -1161,6 +1198,7 @@ mod tests {
             skeleton: &s.true_skeleton,
             hand: &hand,
             markers: m.markers.clone(),
+            extra: m.extra.clone(),
         };
         let rng = Rng::new(42).fork("motion-grasp_bottle");
         let again = simulate_grasp(tasks, inputs(), 3.0, FRAME_RATE, &err, &gerr, &rng).unwrap();

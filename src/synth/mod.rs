@@ -265,6 +265,12 @@ pub struct SynthOptions {
     /// them. Not written to `truth.json` when false.
     #[serde(default, skip_serializing_if = "is_false")]
     pub tip_markers: bool,
+    /// Keep the fingertip markers of `tip_markers` on through the grasp motion trials (riding
+    /// the distal links, sliding with the DIP as the nails do; noise and gaps from streams of
+    /// their own, so every other marker's track is the same). A lab may leave them off there,
+    /// where a grasp's fingertips meet the part. Not written to `truth.json` when false.
+    #[serde(default, skip_serializing_if = "is_false")]
+    pub tip_markers_worn: bool,
 }
 
 fn is_false(v: &bool) -> bool {
@@ -308,6 +314,7 @@ impl SynthOptions {
             motion_s: None,
             percentile_hand: None,
             tip_markers: false,
+            tip_markers_worn: false,
         }
     }
 }
@@ -650,11 +657,13 @@ pub fn simulate_with(opts: &SynthOptions, err: &ErrorModel) -> Result<SyntheticS
                 .collect()
         })
         .collect();
+    let mut placed_tips: Vec<(&str, Point)> = Vec::new();
     if opts.tip_markers {
         let mut tip_place = session("tip-placement");
         let mut tip_noise = session("reference-trial-tips");
         for name in tip_marker_names() {
             let q = place(name, &mut tip_place);
+            placed_tips.push((name, q));
             names.push(name);
             positions.push(
                 (0..REFERENCE_FRAMES)
@@ -700,6 +709,25 @@ pub fn simulate_with(opts: &SynthOptions, err: &ErrorModel) -> Result<SyntheticS
             }
         }
         defs.extend(arm_defs.iter().cloned());
+        // Fingertip markers kept on for the grasp slide from streams of their own.
+        let mut tip_sta_rng = session("grasp-tip-sta");
+        let worn: &[(&str, Point)] = if opts.tip_markers_worn {
+            &placed_tips
+        } else {
+            &[]
+        };
+        let extra: Vec<MarkerDef> = worn
+            .iter()
+            .filter_map(|&(name, q)| {
+                grasp_motion::landmark_marker(
+                    name,
+                    q,
+                    &hand.landmarks[name].1,
+                    err.skin_sta_mm,
+                    &mut tip_sta_rng,
+                )
+            })
+            .collect();
         let gerr = grasp_motion::GraspErrors::from_model(&err);
         // The true skin's weights for its contacts: the template's by homology, or bone heat
         // on the procedural body's own skin. No draws: the trials do not change.
@@ -721,6 +749,7 @@ pub fn simulate_with(opts: &SynthOptions, err: &ErrorModel) -> Result<SyntheticS
                     skeleton: &true_skeleton,
                     hand: &skinned,
                     markers: defs.clone(),
+                    extra: extra.clone(),
                 },
                 motion_s,
                 FRAME_RATE,
@@ -1396,6 +1425,52 @@ mod tests {
                 assert!(along > bone.norm(), "{body:?} {f:?}");
                 let off = ((m - c) - bone.normalize() * along).norm();
                 assert!(off < 6.0, "{body:?} {f:?}: {off:.1} mm off the line");
+            }
+        }
+    }
+
+    #[test]
+    fn fingertip_markers_ride_the_grasp_trials_from_draws_of_their_own() {
+        let opts = SynthOptions {
+            motion_s: Some(2.0),
+            ..short(39, Preset::Typical)
+        };
+        let plain = simulate(&opts).unwrap();
+        let tipped = simulate(&SynthOptions {
+            tip_markers: true,
+            tip_markers_worn: true,
+            ..opts.clone()
+        })
+        .unwrap();
+        assert!(!plain.motions.is_empty());
+        let sk = &tipped.true_skeleton;
+        for (k, a) in &plain.motions {
+            let b = &tipped.motions[k];
+            for n in &a.trajectories.labels {
+                assert_eq!(a.trajectories.track(n), b.trajectories.track(n), "{k} {n}");
+            }
+            assert_eq!(b.trajectories.labels.len(), a.trajectories.labels.len() + 5);
+            for f in Finger::ALL {
+                let n = f.tip_marker();
+                assert_eq!(b.truth.marker_links[n], f.links()[2].name(), "{k} {n}");
+                // On the distal phalanx: as far from the true DIP centre as in the static
+                // trial, but for its slide over the bone (0.5 mm at most here) and the noise.
+                let dip = f.joints()[2];
+                let rest = (tipped.trials["reference"]
+                    .mean_position(n, 0..REFERENCE_FRAMES)
+                    .unwrap()
+                    - sk.centre(dip))
+                .norm();
+                let track = b.trajectories.track(n).unwrap();
+                let centres = &b.truth.joints[dip.name()].centre;
+                let seen: Vec<f64> = track
+                    .iter()
+                    .zip(centres)
+                    .filter_map(|(p, c)| p.map(|p| (p - Point::from(*c)).norm() - rest))
+                    .collect();
+                assert!(seen.len() > track.len() / 2, "{k} {n}: {} seen", seen.len());
+                let worst = seen.iter().fold(0.0f64, |m, d| m.max(d.abs()));
+                assert!(worst < 2.0, "{k} {n}: {worst:.2} mm off its rest distance");
             }
         }
     }

@@ -43,7 +43,8 @@ pub struct Attachment {
 
 /// The link the marker `name` rides on (spec section 5): a joint's dorsal marker on the link
 /// proximal to the joint (the head of the proximal bone), a nail marker on the distal link,
-/// `T_MC_1/2` on the thumb metacarpal, the MCP laterals and `PALM_n` on the palm, the
+/// `T_MC_1/2` on the thumb metacarpal, a fingertip marker (`I_TIP`, an extension of the
+/// spec) on the distal link, the MCP laterals and `PALM_n` on the palm, the
 /// styloids and `ARM_n` on the forearm, a plate marker `<LINK>_k` on its link. `None` for
 /// anything else (`PART_n` and unknown names).
 pub fn rides_on(name: &str) -> Option<Link> {
@@ -61,7 +62,7 @@ pub fn rides_on(name: &str) -> Option<Link> {
     }
     if let Some(f) = Finger::ALL
         .into_iter()
-        .find(|f| name == format!("{}_NAIL", f.letter()))
+        .find(|f| name == format!("{}_NAIL", f.letter()) || name == f.tip_marker())
     {
         return Some(f.links()[2]);
     }
@@ -154,6 +155,8 @@ mod tests {
             ("T_MC_2", Link::TMeta),
             ("T_NAIL", Link::TDist),
             ("R_NAIL", Link::RDist),
+            ("I_TIP", Link::IDist),
+            ("T_TIP", Link::TDist),
             ("M_MID_2", Link::MMid),
         ];
         for (n, l) in cases {
