@@ -406,12 +406,28 @@ pub fn fit_skin(
     };
 
     // 4. The landmark fit with the caliper dimensions (equation 2) and the centre terms.
+    // A fingertip marker sits where the distal phalanx's long axis leaves the skin, so the skin's
+    // normal under it is that axis: the apex is pinned on the line from the subject's distal
+    // joint to the marker, the offset short of it. Along the fit's own normal (every other
+    // landmark's), the pinned apex turns that normal away from the axis on a hand unlike the
+    // template, and the apex then stands off the skin, beyond the fingertip.
+    let distal_axis = |n: &str| -> Option<Vec3> {
+        let f = Finger::ALL.into_iter().find(|f| f.tip_marker() == n)?;
+        (target(n) - link_model?.centre(f.joints()[2])).try_normalize(1e-9)
+    };
     let landmarks: Vec<LandmarkConstraint> = names
         .iter()
-        .map(|n| LandmarkConstraint {
-            vertex: index(spec.landmarks[*n]),
-            target: target(n),
-            offset_mm: marker_offset_mm,
+        .map(|n| match distal_axis(n) {
+            Some(axis) => LandmarkConstraint {
+                vertex: index(spec.landmarks[*n]),
+                target: target(n) - axis * marker_offset_mm,
+                offset_mm: 0.0,
+            },
+            None => LandmarkConstraint {
+                vertex: index(spec.landmarks[*n]),
+                target: target(n),
+                offset_mm: marker_offset_mm,
+            },
         })
         .collect();
     let mut distances: Vec<DistanceConstraint> = Vec::new();
