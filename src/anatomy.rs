@@ -73,6 +73,11 @@ impl Finger {
         }
     }
 
+    /// The digit whose fingertip marker is `name` (`T_TIP` -> thumb), if it is one.
+    pub fn from_tip_marker(name: &str) -> Option<Finger> {
+        Finger::ALL.into_iter().find(|f| f.tip_marker() == name)
+    }
+
     /// The trial key in `subject.toml`: `thumb`, `index`, ...
     pub fn trial_name(self) -> &'static str {
         match self {
@@ -455,6 +460,19 @@ impl fmt::Display for Dimension {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_fingertip_marker_names_its_digit_and_nothing_else_does() {
+        for f in Finger::ALL {
+            assert_eq!(Finger::from_tip_marker(f.tip_marker()), Some(f));
+            assert_eq!(
+                Finger::from_tip_marker(&format!("{}_NAIL", f.letter())),
+                None
+            );
+        }
+        assert_eq!(Finger::from_tip_marker("i_tip"), None);
+        assert_eq!(Finger::from_tip_marker("PALM_1"), None);
+    }
 
     #[test]
     fn tree_is_consistent() {

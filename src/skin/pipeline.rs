@@ -412,7 +412,7 @@ pub fn fit_skin(
     // landmark's), the pinned apex turns that normal away from the axis on a hand unlike the
     // template, and the apex then stands off the skin, beyond the fingertip.
     let distal_axis = |n: &str| -> Option<Vec3> {
-        let f = Finger::ALL.into_iter().find(|f| f.tip_marker() == n)?;
+        let f = Finger::from_tip_marker(n)?;
         (target(n) - link_model?.centre(f.joints()[2])).try_normalize(1e-9)
     };
     let landmarks: Vec<LandmarkConstraint> = names

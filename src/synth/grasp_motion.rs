@@ -238,12 +238,7 @@ pub fn landmark_link(name: &str) -> Option<Link> {
         "T_MC_1" | "T_MC_2" => Link::TMeta,
         "I_MCP_LAT" | "L_MCP_LAT" | "PALM_1" | "PALM_2" | "PALM_3" | "PALM_4" => Link::Palm,
         "WRIST_RAD" | "WRIST_ULN" | "ARM_1" | "ARM_2" | "ARM_3" => Link::Arm,
-        _ => {
-            return Finger::ALL
-                .into_iter()
-                .find(|f| f.tip_marker() == name)
-                .map(|f| f.links()[2])
-        }
+        _ => return Finger::from_tip_marker(name).map(|f| f.links()[2]),
     })
 }
 
@@ -264,7 +259,7 @@ fn landmark_driver(name: &str) -> (Joint, f64) {
         "T_MC_1" | "T_MC_2" => Joint::TMcp,
         "I_MCP_LAT" => Joint::IMcp,
         "L_MCP_LAT" => Joint::LMcp,
-        _ => match Finger::ALL.into_iter().find(|f| f.tip_marker() == name) {
+        _ => match Finger::from_tip_marker(name) {
             Some(f) => f.joints()[2],
             None => Joint::Wrist,
         },
