@@ -73,6 +73,17 @@ impl Finger {
         }
     }
 
+    /// Name of the digit's nail marker (spec section 1): `T_NAIL`, `I_NAIL`, ...
+    pub fn nail_marker(self) -> &'static str {
+        match self {
+            Finger::Thumb => "T_NAIL",
+            Finger::Index => "I_NAIL",
+            Finger::Middle => "M_NAIL",
+            Finger::Ring => "R_NAIL",
+            Finger::Little => "L_NAIL",
+        }
+    }
+
     /// The digit whose fingertip marker is `name` (`T_TIP` -> thumb), if it is one.
     pub fn from_tip_marker(name: &str) -> Option<Finger> {
         Finger::ALL.into_iter().find(|f| f.tip_marker() == name)
@@ -465,10 +476,8 @@ mod tests {
     fn a_fingertip_marker_names_its_digit_and_nothing_else_does() {
         for f in Finger::ALL {
             assert_eq!(Finger::from_tip_marker(f.tip_marker()), Some(f));
-            assert_eq!(
-                Finger::from_tip_marker(&format!("{}_NAIL", f.letter())),
-                None
-            );
+            assert_eq!(f.nail_marker(), format!("{}_NAIL", f.letter()));
+            assert_eq!(Finger::from_tip_marker(f.nail_marker()), None);
         }
         assert_eq!(Finger::from_tip_marker("i_tip"), None);
         assert_eq!(Finger::from_tip_marker("PALM_1"), None);

@@ -1209,7 +1209,7 @@ pub(crate) fn estimate_link_model_from_with(
     // Fingertips: the nail landmarks stand in for the ends of the distal links.
     let mut tips = [Point::origin(); 5];
     for f in Finger::ALL {
-        tips[f as usize] = landmark(&format!("{}_NAIL", f.letter()))?;
+        tips[f as usize] = landmark(f.nail_marker())?;
     }
     let skeleton = build_skeleton(hand, &joints, tips, &reference_palm, &plates)
         .map_err(|e| e.in_file(&reference.source))?;

@@ -136,7 +136,7 @@ fn pose_of(params: &[f64], unknowns: &[(Joint, usize)]) -> Pose {
 fn distal_marker(j: Joint) -> String {
     let f = j.finger().expect("wrist excluded");
     match j.rank() {
-        2 => format!("{}_NAIL", f.letter()),
+        2 => f.nail_marker().to_string(),
         r => f.joints()[r + 1].name().to_string(),
     }
 }

@@ -145,7 +145,7 @@ pub fn derive_hand_spec(
         let dj = f.joints()[2];
         let origin = sk.centre(dj) + (sk.tips[f as usize] - sk.centre(dj)) * 0.6;
         put(
-            &format!("{}_NAIL", f.letter()),
+            f.nail_marker(),
             ray_vertex(mesh, &origin, &sk.joint(dj).y()),
         )?;
     }

@@ -60,11 +60,10 @@ pub fn rides_on(name: &str) -> Option<Link> {
     if let Some(j) = Joint::from_name(name) {
         return Some(j.parent_link());
     }
-    if let Some(f) = Finger::from_tip_marker(name).or_else(|| {
-        Finger::ALL
-            .into_iter()
-            .find(|f| name == format!("{}_NAIL", f.letter()))
-    }) {
+    if let Some(f) = Finger::ALL
+        .into_iter()
+        .find(|f| name == f.nail_marker() || name == f.tip_marker())
+    {
         return Some(f.links()[2]);
     }
     Link::ALL

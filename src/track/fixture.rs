@@ -52,10 +52,7 @@ pub fn static_markers(sk: &Skeleton) -> BTreeMap<String, Point> {
     for f in Finger::ALL {
         let d = sk.joint(f.joints()[2]);
         let tip = sk.tips[f as usize];
-        put(
-            &format!("{}_NAIL", f.letter()),
-            tip - d.z() * 4.0 + d.y() * 7.0,
-        );
+        put(f.nail_marker(), tip - d.z() * 4.0 + d.y() * 7.0);
     }
     let (c, mcp) = (sk.joint(Joint::TCmc), sk.centre(Joint::TMcp));
     put("T_MC_1", c.centre + (mcp - c.centre) * 0.35 + c.y() * 9.0);

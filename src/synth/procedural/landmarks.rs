@@ -55,7 +55,7 @@ pub fn place_landmarks(
         let dj = f.joints()[2];
         let c = sk.centre(dj);
         ray(
-            &format!("{}_NAIL", f.letter()),
+            f.nail_marker(),
             c + (sk.tips[f as usize] - c) * 0.6,
             sk.joint(dj).y(),
         )?;
