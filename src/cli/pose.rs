@@ -231,11 +231,12 @@ pub(crate) fn pose_job(
         let max_depth = ResolveOptions::default().max_depth_mm;
         match &baked {
             Some((_, _, p)) if !glb => {
-                quality::finger_penetration(&p.skin, &hand.weights, max_depth)
+                quality::posed_finger_penetration(&hand, &pose, &p.skin, max_depth)
             }
-            _ => quality::finger_penetration(
+            _ => quality::posed_finger_penetration(
+                &hand,
+                &pose,
                 &hand.posed_skin(&pose, method),
-                &hand.weights,
                 max_depth,
             ),
         }

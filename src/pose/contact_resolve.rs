@@ -18,9 +18,14 @@
 //! angle by at most 3° per step), then the pose is clamped to the anatomical limits. The
 //! weights keep the pose's intent: a finger makes room by spreading at its MCP (weight 1)
 //! rather than by unbending (0.2); the thumb moves at all its joints.
+//!
+//! The penetrations are those of [`super::quality::posed_finger_penetration`]: a face that
+//! skinning turned over (a crease folded through itself) faces into its finger, so a vertex of
+//! the next digit facing it would read as inside by its whole distance, a reading no change of
+//! the angles removes; such faces are skipped, as the digits' open rims are.
 
 use super::hand::IndividualHand;
-use super::quality::{finger_penetration, Penetration};
+use super::quality::{posed_finger_penetration, Penetration};
 use super::skinning::Skinning;
 use crate::anatomy::{Finger, Joint};
 use crate::geometry::{Point, TriMesh};
@@ -144,7 +149,7 @@ pub fn resolve_finger_contacts_on<E>(
             faces: hand.skin.faces.clone(),
         };
         Ok((
-            finger_penetration(&posed, &hand.weights, opts.max_depth_mm),
+            posed_finger_penetration(hand, p, &posed, opts.max_depth_mm),
             posed.vertices,
         ))
     };

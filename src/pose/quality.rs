@@ -31,7 +31,7 @@ pub(crate) fn face_links(mesh: &TriMesh, weights: &LinkWeights) -> Vec<usize> {
 
 /// The digit a link belongs to for penetration checks: the phalanges of each digit (the thumb
 /// metacarpal is the thenar eminence, part of the palm here).
-fn digit_of(l: usize) -> Option<Finger> {
+pub(crate) fn digit_of(l: usize) -> Option<Finger> {
     let link = *Link::ALL.get(l)?;
     if link == Link::TMeta {
         return None;
@@ -80,6 +80,61 @@ pub fn finger_penetration(
     weights: &LinkWeights,
     max_depth_mm: f64,
 ) -> Penetration {
+    finger_penetration_where_facing(posed, weights, max_depth_mm, &[])
+}
+
+/// The faces of `posed` (the skin `rest` in a pose whose links turn by `rotations`, over
+/// [`Link::ALL`]) that skinning turned over: more than 90° from the rest face carried by its
+/// dominant link ([`crate::skin::unfold::face_turn`]), or degenerate.
+pub fn turned_over_faces(
+    rest: &TriMesh,
+    weights: &LinkWeights,
+    rotations: &[nalgebra::UnitQuaternion<f64>],
+    posed: &TriMesh,
+) -> Vec<bool> {
+    use crate::skin::unfold::{bone_carried_normals, face_turn, FaceTurn};
+    let guard = bone_carried_normals(rest, &dominant_links(weights), rotations);
+    (0..posed.n_faces())
+        .map(|f| face_turn(&guard[f], &posed.face_cross(f)) != FaceTurn::Kept)
+        .collect()
+}
+
+/// [`finger_penetration_where_facing`] of `posed`, the skin of `hand` in `pose`, skipping the
+/// faces that skinning turned over ([`turned_over_faces`]). This is the measure `pose` keeps
+/// the digits apart by: a crease folded through itself reads as a penetration as deep as the
+/// distance to the fold, which no change of the angles can remove, and the resolver then
+/// chased it instead of the digits that do meet.
+pub fn posed_finger_penetration(
+    hand: &super::IndividualHand,
+    pose: &crate::skeleton::Pose,
+    posed: &TriMesh,
+    max_depth_mm: f64,
+) -> Penetration {
+    let rotations: Vec<_> =
+        crate::skeleton::forward_kinematics::link_transforms(&hand.skeleton, pose)
+            .iter()
+            .map(|t| t.rotation)
+            .collect();
+    let turned = turned_over_faces(&hand.skin, &hand.weights, &rotations, posed);
+    finger_penetration_where_facing(posed, &hand.weights, max_depth_mm, &turned)
+}
+
+/// [`finger_penetration`] where the entered digit's surface faces the way its bone carries it:
+/// a closest point on a face touching a vertex of a face in `turned` (e.g. from
+/// [`turned_over_faces`]; empty: none) is skipped, as at the digit's rim, because the sign of a
+/// surface folded through itself means nothing (a vertex just outside reads as deep inside).
+pub fn finger_penetration_where_facing(
+    posed: &TriMesh,
+    weights: &LinkWeights,
+    max_depth_mm: f64,
+    turned: &[bool],
+) -> Penetration {
+    let mut unreliable = vec![false; posed.n_vertices()];
+    for (f, _) in turned.iter().enumerate().filter(|(_, &t)| t) {
+        for &u in &posed.faces[f] {
+            unreliable[u] = true;
+        }
+    }
     let dom = dominant_links(weights);
     let fl = face_links(posed, weights);
     let mut best = Penetration {
@@ -132,7 +187,7 @@ pub fn finger_penetration(
             if !c.distance.is_finite() || c.distance > max_depth_mm {
                 continue;
             }
-            if sub.faces[c.face].iter().any(|&u| rim[u]) {
+            if sub.faces[c.face].iter().any(|&u| rim[u] || unreliable[u]) {
                 continue;
             }
             let n = normals.of(&sub, c.face, c.feature);
@@ -275,6 +330,7 @@ pub fn is_finger_segment(l: usize) -> bool {
 mod tests {
     use super::*;
     use crate::anatomy::Side;
+    use crate::geometry::Vec3;
     use crate::template::load_template;
     use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 
@@ -364,5 +420,97 @@ mod tests {
             }),
             "{pen:?}"
         );
+    }
+
+    /// A patch of the index finger turned over in place (its vertices mirrored through a plane
+    /// that holds the surface normal, which keeps them where they are and reverses every face
+    /// there, as a crease that skinning folds through itself does) and a middle-finger vertex
+    /// 1 mm outside it: the plain measure reads middle-finger vertices as inside the index,
+    /// because the folded faces' normals point into the finger; the measure that skips
+    /// turned-over faces does not, and
+    /// finds the turned faces itself from the rest skin. A real penetration (the middle finger
+    /// pushed into the index) reads about the same with both.
+    #[test]
+    fn a_surface_turned_over_in_place_is_no_penetration() {
+        let t = load_template(Side::Right).unwrap();
+        let dom = dominant_links(&t.weights);
+        let normals = t.mesh.vertex_normals();
+        let index_mid = Link::IMid.index();
+        let toward = (t.skeleton.centre(crate::anatomy::Joint::MPip)
+            - t.skeleton.centre(crate::anatomy::Joint::IPip))
+        .normalize();
+        let q = (0..t.mesh.n_vertices())
+            .filter(|&v| dom[v] == index_mid)
+            .max_by(|&a, &b| normals[a].dot(&toward).total_cmp(&normals[b].dot(&toward)))
+            .unwrap();
+        let (qp, n) = (t.mesh.vertices[q], normals[q].normalize());
+        let b = n
+            .cross(&toward)
+            .try_normalize(1e-9)
+            .unwrap_or_else(|| n.cross(&Vec3::z()).normalize());
+        let patch: Vec<usize> = (0..t.mesh.n_vertices())
+            .filter(|&v| dom[v] == index_mid && (t.mesh.vertices[v] - qp).norm() < 3.0)
+            .collect();
+        let mut folded = t.mesh.clone();
+        for &v in &patch {
+            let p = folded.vertices[v];
+            folded.vertices[v] = p - b * (2.0 * (p - qp).dot(&b));
+        }
+        // The middle finger's vertex nearest that point, moved there (a short move: the
+        // fingers lie side by side).
+        let target = qp + n * 1.0;
+        let middle = [Link::MProx, Link::MMid, Link::MDist].map(|l| l.index());
+        let outside = (0..t.mesh.n_vertices())
+            .filter(|&v| middle.contains(&dom[v]))
+            .min_by(|&a, &b| {
+                let d = |v: usize| (t.mesh.vertices[v] - target).norm();
+                d(a).total_cmp(&d(b))
+            })
+            .unwrap();
+        folded.vertices[outside] = target;
+        let rotations = vec![nalgebra::UnitQuaternion::identity(); Link::ALL.len()];
+        let turned = turned_over_faces(&t.mesh, &t.weights, &rotations, &folded);
+        let n_turned = turned.iter().filter(|&&x| x).count();
+        assert!(n_turned >= 4, "{n_turned} faces turned");
+        let middle_in_index = |p: &Penetration| {
+            p.by_pair
+                .iter()
+                .zip(&p.deepest)
+                .find(|(((a, b), _), _)| (*a, *b) == (Finger::Middle, Finger::Index))
+                .map(|((_, d), c)| (*d, c.vertex))
+        };
+        let plain = finger_penetration(&folded, &t.weights, 12.0);
+        // Read inside, and deeper than the vertex moved there: the folded faces' normals make
+        // the middle finger's vertices facing them read as inside by their whole distance.
+        let (depth, _) = middle_in_index(&plain).expect("the plain measure reads it inside");
+        assert!(depth > 1.0, "{plain:?}");
+        let facing = finger_penetration_where_facing(&folded, &t.weights, 12.0, &turned);
+        assert!(
+            middle_in_index(&facing).is_none_or(|(d, _)| d < 0.5),
+            "{facing:?}"
+        );
+
+        let shift = t.skeleton.centre(crate::anatomy::Joint::IMcp)
+            - t.skeleton.centre(crate::anatomy::Joint::MMcp);
+        let mut pushed = t.mesh.clone();
+        for (v, p) in pushed.vertices.iter_mut().enumerate() {
+            if middle.contains(&dom[v]) {
+                *p += shift * 0.6;
+            }
+        }
+        // Only the faces the push tears at the finger's base turn over.
+        let turned = turned_over_faces(&t.mesh, &t.weights, &rotations, &pushed);
+        assert!(turned.iter().filter(|&&x| x).count() < t.mesh.n_faces() / 100);
+        let plain = finger_penetration(&pushed, &t.weights, 12.0);
+        let facing = finger_penetration_where_facing(&pushed, &t.weights, 12.0, &turned);
+        assert!(plain.depth_mm > 2.0, "{plain:?}");
+        assert!(
+            (facing.depth_mm - plain.depth_mm).abs() < 0.5,
+            "{plain:?} {facing:?}"
+        );
+        assert!(facing.by_pair.iter().all(|((a, b), _)| matches!(
+            (a, b),
+            (Finger::Middle, Finger::Index) | (Finger::Index, Finger::Middle)
+        )));
     }
 }

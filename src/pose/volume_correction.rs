@@ -379,15 +379,20 @@ impl VolumeRig {
         })
     }
 
-    /// The skin of [`VolumeRig::pose`] with the correction on, without placing the tet mesh's
-    /// boundary (the skin is all a contact check needs: [`super::resolve_finger_contacts_on`]).
+    /// The skin of [`VolumeRig::pose`] with the correction on, as it is written (its folds
+    /// relaxed), without placing the tet mesh's boundary (the skin is all a contact check needs:
+    /// [`super::resolve_finger_contacts_on`]). Contacts are resolved on this very skin: the
+    /// relaxation moves a crease's skin by up to a few millimetres, and a thumb kept clear of
+    /// the folded crease met the relaxed one 2.6 mm deep.
     pub fn corrected_skin(
         &self,
         hand: &IndividualHand,
         pose: &Pose,
         opts: &VolumeOptions,
     ) -> Result<Vec<Point>> {
-        Ok(self.skin_and_nodes(hand, pose, true, opts)?.0.vertices)
+        let mut skin = self.skin_and_nodes(hand, pose, true, opts)?.0;
+        unfold_posed_skin(hand, pose, &mut skin);
+        Ok(skin.vertices)
     }
 
     /// Skin and tet nodes skinned by DQS and, if `correct`, moved by the bulge field; the
