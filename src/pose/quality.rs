@@ -427,9 +427,8 @@ mod tests {
     /// there, as a crease that skinning folds through itself does) and a middle-finger vertex
     /// 1 mm outside it: the plain measure reads middle-finger vertices as inside the index,
     /// because the folded faces' normals point into the finger; the measure that skips
-    /// turned-over faces does not, and
-    /// finds the turned faces itself from the rest skin. A real penetration (the middle finger
-    /// pushed into the index) reads about the same with both.
+    /// turned-over faces (found from the rest skin) does not. A real penetration (the middle
+    /// finger pushed into the index) reads about the same with both.
     #[test]
     fn a_surface_turned_over_in_place_is_no_penetration() {
         let t = load_template(Side::Right).unwrap();
@@ -475,18 +474,17 @@ mod tests {
         let middle_in_index = |p: &Penetration| {
             p.by_pair
                 .iter()
-                .zip(&p.deepest)
-                .find(|(((a, b), _), _)| (*a, *b) == (Finger::Middle, Finger::Index))
-                .map(|((_, d), c)| (*d, c.vertex))
+                .find(|((a, b), _)| (*a, *b) == (Finger::Middle, Finger::Index))
+                .map(|(_, d)| *d)
         };
         let plain = finger_penetration(&folded, &t.weights, 12.0);
         // Read inside, and deeper than the vertex moved there: the folded faces' normals make
         // the middle finger's vertices facing them read as inside by their whole distance.
-        let (depth, _) = middle_in_index(&plain).expect("the plain measure reads it inside");
+        let depth = middle_in_index(&plain).expect("the plain measure reads it inside");
         assert!(depth > 1.0, "{plain:?}");
         let facing = finger_penetration_where_facing(&folded, &t.weights, 12.0, &turned);
         assert!(
-            middle_in_index(&facing).is_none_or(|(d, _)| d < 0.5),
+            middle_in_index(&facing).is_none_or(|d| d < 0.5),
             "{facing:?}"
         );
 
