@@ -85,17 +85,17 @@ pub fn finger_penetration(
 
 /// The faces of `posed` (the skin `rest` in a pose whose links turn by `rotations`, over
 /// [`Link::ALL`]) that skinning turned over: more than 90° from the rest face carried by its
-/// dominant link ([`crate::skin::unfold::face_turn`]), or degenerate.
+/// dominant link, or degenerate ([`crate::skin::unfold::turned_over`]).
 pub fn turned_over_faces(
     rest: &TriMesh,
     weights: &LinkWeights,
     rotations: &[nalgebra::UnitQuaternion<f64>],
     posed: &TriMesh,
 ) -> Vec<bool> {
-    use crate::skin::unfold::{bone_carried_normals, face_turn, FaceTurn};
+    use crate::skin::unfold::{bone_carried_normals, turned_over};
     let guard = bone_carried_normals(rest, &dominant_links(weights), rotations);
     (0..posed.n_faces())
-        .map(|f| face_turn(&guard[f], &posed.face_cross(f)) != FaceTurn::Kept)
+        .map(|f| turned_over(&guard[f], &posed.face_cross(f)))
         .collect()
 }
 

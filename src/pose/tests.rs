@@ -217,11 +217,6 @@ fn any_point_set_is_posed_by_the_same_functions() {
     }
 }
 
-/// The quality figures in `fist`: finger-finger penetration of the skin and the
-/// volume change of each finger segment (the tissue of the tet mesh, [`quality::segment_volumes`])
-/// for both weight sources and both skinnings, and for DQS with the segment-volume correction
-/// ([`volume_correction`]), on the template as an individual hand and on a reconstructed
-/// subject (its own tet mesh, deformed from the template's). Asserted, for the defaults
 /// Deepest penetration of one digit into another by volume, independent of any surface normal:
 /// a vertex of `skin` (digit by its dominant link in `weights`) inside a tetrahedron of another
 /// digit's segment (`labels`, the posed `nodes` of `tets`), its depth the distance to that
@@ -299,6 +294,11 @@ fn volumetric_penetration(
     worst
 }
 
+/// The quality figures in `fist`: finger-finger penetration of the skin and the
+/// volume change of each finger segment (the tissue of the tet mesh, [`quality::segment_volumes`])
+/// for both weight sources and both skinnings, and for DQS with the segment-volume correction
+/// ([`volume_correction`]), on the template as an individual hand and on a reconstructed
+/// subject (its own tet mesh, deformed from the template's). Asserted, for the defaults
 /// (template weights, DQS, corrected) on both hands: every finger segment within 5 % of its
 /// rest volume (the goal), the correction reaching its 0.5 % tolerance, and the digits
 /// apart within the resolver's 1 mm on the corrected skin when the contacts are resolved on

@@ -36,7 +36,7 @@ use super::IndividualHand;
 use crate::anatomy::Link;
 use crate::error::{Error, Result};
 use crate::geometry::tet_mesh::tet_signed_volume;
-use crate::geometry::{Point, TriMesh, Vec3};
+use crate::geometry::{Point, Topology, TriMesh, Vec3};
 use crate::io::Units;
 use crate::skeleton::forward_kinematics::link_transforms;
 use crate::skeleton::{Pose, Skeleton};
@@ -48,6 +48,7 @@ use crate::tet::{
 };
 use nalgebra::{DMatrix, DVector, Isometry3};
 use std::path::Path;
+use std::sync::OnceLock;
 
 /// Options of [`preserve_segment_volumes`].
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -252,6 +253,10 @@ pub struct VolumeRig {
     pub labels: Vec<usize>,
     /// Per link over [`Link::ALL`], the rest volume of its segment, mm³.
     pub rest_volumes: Vec<f64>,
+    /// The skin's topology for relaxing its folds, made once on first use: the contact
+    /// resolver asks for the posed skin every round, and every skin posed with this rig has the
+    /// template's faces.
+    skin_topology: OnceLock<Topology>,
 }
 
 /// A pose of [`VolumeRig::pose`].
@@ -318,6 +323,7 @@ impl VolumeRig {
             node_weights,
             labels,
             rest_volumes,
+            skin_topology: OnceLock::new(),
         })
     }
 
@@ -334,7 +340,7 @@ impl VolumeRig {
         let n = Link::ALL.len();
         let (mut skin, mut nodes, mut correction) =
             self.skin_and_nodes(hand, pose, correct, opts)?;
-        let skin_unfolded = unfold_posed_skin(hand, pose, &mut skin);
+        let skin_unfolded = self.unfold_posed_skin(hand, pose, &mut skin);
         place_boundary_nodes(&self.binding, &skin, &mut nodes)?;
         // Skinning keeps no element positive where a joint bends hard (the palmar creases of a
         // fist): the interior nodes give way where that happens.
@@ -391,8 +397,29 @@ impl VolumeRig {
         opts: &VolumeOptions,
     ) -> Result<Vec<Point>> {
         let mut skin = self.skin_and_nodes(hand, pose, true, opts)?.0;
-        unfold_posed_skin(hand, pose, &mut skin);
+        self.unfold_posed_skin(hand, pose, &mut skin);
         Ok(skin.vertices)
+    }
+
+    /// `skin`, `hand`'s skin skinned in `pose`, relaxed where a face turned over from its
+    /// bone's rotation of its rest face (blended weights can fold the skin through itself at a
+    /// crease that two bones pull apart, such as the radial wrist under the thumb's metacarpal
+    /// in a pinch): the faces found so and those left.
+    fn unfold_posed_skin(
+        &self,
+        hand: &IndividualHand,
+        pose: &Pose,
+        skin: &mut TriMesh,
+    ) -> (usize, usize) {
+        let rotations: Vec<_> = link_transforms(&hand.skeleton, pose)
+            .iter()
+            .map(|t| t.rotation)
+            .collect();
+        let rest = &hand.skin;
+        let rest_guard: Vec<Vec3> = (0..rest.n_faces()).map(|f| rest.face_cross(f)).collect();
+        let guard = bone_carried_normals(rest, &dominant_links(&hand.weights), &rotations);
+        let topology = self.skin_topology.get_or_init(|| rest.topology());
+        unfold_skin(rest, &rest_guard, skin, &guard, topology, UNFOLD_PASSES)
     }
 
     /// Skin and tet nodes skinned by DQS and, if `correct`, moved by the bulge field; the
@@ -433,28 +460,6 @@ impl VolumeRig {
         Ok((skin, nodes, correction))
     }
 }
-/// `skin`, `hand`'s skin skinned in `pose`, relaxed where a face turned over from its bone's
-/// rotation of its rest face (blended weights can fold the skin through itself at a crease that
-/// two bones pull apart, such as the radial wrist under the thumb's metacarpal in a pinch):
-/// the faces found so and those left.
-fn unfold_posed_skin(hand: &IndividualHand, pose: &Pose, skin: &mut TriMesh) -> (usize, usize) {
-    let rotations: Vec<_> = link_transforms(&hand.skeleton, pose)
-        .iter()
-        .map(|t| t.rotation)
-        .collect();
-    let rest = &hand.skin;
-    let rest_guard: Vec<Vec3> = (0..rest.n_faces()).map(|f| rest.face_cross(f)).collect();
-    let guard = bone_carried_normals(rest, &dominant_links(&hand.weights), &rotations);
-    unfold_skin(
-        rest,
-        &rest_guard,
-        skin,
-        &guard,
-        &rest.topology(),
-        UNFOLD_PASSES,
-    )
-}
-
 /// The [`VolumeRig`] of the `reconstruct` folder `model_dir`: its tetrahedral mesh
 /// (`tet.vtk`, homologous to the template's) with the template's node weights. Errors naming
 /// `tet.vtk` when it is missing or not homologous to the template's tet mesh (made by another
