@@ -26,7 +26,10 @@
 //! blended band at their joint) and a backtracking line search; a few iterations bring every
 //! segment within 0.5 %.
 //! The same field then moves the skin's vertices, and the mesh's boundary nodes are placed on
-//! that skin ([`super::pose_tet_nodes`]).
+//! that skin ([`super::pose_tet_nodes`]). Where skinning turned the skin of a crease over, the
+//! skin is relaxed there first ([`crate::skin::unfold`]), which moves the boundary of the
+//! segments on either side; the targets are then corrected by what that moved and the field
+//! solved again ([`VolumeRig::pose`]).
 
 use super::quality::{
     finger_volume_changes, inverted_by_link, is_finger_segment, segment_volumes, tet_segments,
@@ -147,31 +150,33 @@ impl BulgeBasis {
 }
 
 /// Amplitudes of the bulge field (see the module documentation) that give every finger segment
-/// of a tetrahedral mesh its rest volume: `posed` are the mesh's DQS-skinned nodes, `basis`
-/// the [`BulgeBasis`] at them, `tets` and `labels` the mesh's tetrahedra and their segments
-/// ([`super::quality::tet_segments`]), `rest` the segments' rest volumes
-/// ([`segment_volumes`] of the rest nodes).
+/// of a tetrahedral mesh the volume `target` (its rest volume, [`segment_volumes`] of the rest
+/// nodes, or that corrected for what follows the field, see [`VolumeRig::pose`]): `posed` are
+/// the mesh's DQS-skinned nodes, `basis` the [`BulgeBasis`] at them, `tets` and `labels` the
+/// mesh's tetrahedra and their segments ([`super::quality::tet_segments`]). Newton starts from
+/// the amplitudes `start` (per link; zeros, or a solve for nearby targets).
 pub(crate) fn preserve_segment_volumes(
     posed: &[Point],
     basis: &BulgeBasis,
     tets: &[[usize; 4]],
     labels: &[usize],
-    rest: &[f64],
+    target: &[f64],
+    start: &[f64],
     opts: &VolumeOptions,
 ) -> VolumeCorrection {
-    let n = rest.len();
+    let n = target.len();
     let kept: Vec<usize> = (0..n)
-        .filter(|&l| is_finger_segment(l) && rest[l] > 0.0)
+        .filter(|&l| is_finger_segment(l) && target[l] > 0.0)
         .collect();
     let worst = |v: &[f64]| {
         kept.iter()
-            .map(|&l| (v[l] / rest[l] - 1.0).abs())
+            .map(|&l| (v[l] / target[l] - 1.0).abs())
             .fold(0.0, f64::max)
     };
-    let mut amplitude = vec![0.0; n];
-    let mut v = segment_volumes(posed, tets, labels, n);
-    let worst_before = worst(&v);
-    let mut worst_after = worst_before;
+    let worst_before = worst(&segment_volumes(posed, tets, labels, n));
+    let mut amplitude = start.to_vec();
+    let mut v = segment_volumes(&basis.apply(posed, &amplitude), tets, labels, n);
+    let mut worst_after = worst(&v);
     let mut iterations = 0;
     // The forward-difference step: a 2 % swelling of the blended band, small against the
     // amplitudes found (0.2-0.8) and large against rounding.
@@ -192,12 +197,12 @@ pub(crate) fn preserve_segment_volumes(
                 jac[(r, c)] = (vh[l] - v[l]) / H;
             }
         }
-        let rhs = DVector::from_iterator(m, kept.iter().map(|&l| rest[l] - v[l]));
+        let rhs = DVector::from_iterator(m, kept.iter().map(|&l| target[l] - v[l]));
         // A segment without a blended band has a zero row; the least-squares solve (SVD) then
         // leaves its amplitude alone.
         let Ok(sol) = jac
             .svd(true, true)
-            .solve(&rhs, 1e-9 * rest.iter().fold(0.0, |a: f64, b| a.max(*b)))
+            .solve(&rhs, 1e-9 * target.iter().fold(0.0, |a: f64, b| a.max(*b)))
         else {
             break;
         };
@@ -257,6 +262,19 @@ pub struct VolumeRig {
     /// resolver asks for the posed skin every round, and every skin posed with this rig has the
     /// template's faces.
     skin_topology: OnceLock<Topology>,
+}
+
+/// At most this many times the bulge field is solved again for what relaxing the posed skin's
+/// folds took from a segment ([`VolumeRig::pose`]): a second solve brings the segments the
+/// relaxation moved within a per cent or so, a third rarely changes anything.
+const RELAX_ROUNDS: usize = 2;
+
+/// The posed skin relaxed and the nodes placed on it, before the interior is untangled.
+struct Relaxed {
+    skin: TriMesh,
+    nodes: Vec<Point>,
+    correction: VolumeCorrection,
+    skin_unfolded: (usize, usize),
 }
 
 /// A pose of [`VolumeRig::pose`].
@@ -329,7 +347,8 @@ impl VolumeRig {
 
     /// `hand` in `pose`: skin and tet nodes dual-quaternion skinned, then (if `correct`) the
     /// bulge field that keeps every finger segment's volume ([`preserve_segment_volumes`])
-    /// applied to both; the mesh's boundary nodes are placed on the resulting skin.
+    /// applied to both; the skin's folds relaxed and the mesh's boundary nodes placed on it, the
+    /// interior untangled.
     pub fn pose(
         &self,
         hand: &IndividualHand,
@@ -338,10 +357,12 @@ impl VolumeRig {
         opts: &VolumeOptions,
     ) -> Result<VolumePose> {
         let n = Link::ALL.len();
-        let (mut skin, mut nodes, mut correction) =
-            self.skin_and_nodes(hand, pose, correct, opts)?;
-        let skin_unfolded = self.unfold_posed_skin(hand, pose, &mut skin);
-        place_boundary_nodes(&self.binding, &skin, &mut nodes)?;
+        let Relaxed {
+            skin,
+            mut nodes,
+            mut correction,
+            skin_unfolded,
+        } = self.relaxed(hand, pose, correct, opts)?;
         // Skinning keeps no element positive where a joint bends hard (the palmar creases of a
         // fist): the interior nodes give way where that happens.
         let reference: Vec<f64> = self
@@ -386,7 +407,7 @@ impl VolumeRig {
     }
 
     /// The skin of [`VolumeRig::pose`] with the correction on, as it is written (its folds
-    /// relaxed), without placing the tet mesh's boundary (the skin is all a contact check needs:
+    /// relaxed), before the interior is untangled (the skin is all a contact check needs:
     /// [`super::resolve_finger_contacts_on`]). Contacts are resolved on this very skin: the
     /// relaxation moves a crease's skin by up to a few millimetres, and a thumb kept clear of
     /// the folded crease met the relaxed one 2.6 mm deep.
@@ -396,9 +417,68 @@ impl VolumeRig {
         pose: &Pose,
         opts: &VolumeOptions,
     ) -> Result<Vec<Point>> {
-        let mut skin = self.skin_and_nodes(hand, pose, true, opts)?.0;
-        self.unfold_posed_skin(hand, pose, &mut skin);
-        Ok(skin.vertices)
+        Ok(self.relaxed(hand, pose, true, opts)?.skin.vertices)
+    }
+
+    /// Skin and tet nodes of [`VolumeRig::pose`] before the interior is untangled: skinned,
+    /// corrected if `correct`, the skin's folds relaxed and the boundary nodes placed on it.
+    ///
+    /// Relaxing a fold moves the skin of a crease, by up to a few millimetres in a fist, and
+    /// with it the boundary of the segments on either side, which can lose (or gain) many times
+    /// the field's tolerance of what it had given them. So each segment's target is corrected
+    /// by what the relaxation took or added and the field solved again, from the amplitudes
+    /// found, at most [`RELAX_ROUNDS`] times; the round whose worst segment is closest to its
+    /// rest volume is kept.
+    fn relaxed(
+        &self,
+        hand: &IndividualHand,
+        pose: &Pose,
+        correct: bool,
+        opts: &VolumeOptions,
+    ) -> Result<Relaxed> {
+        let n = Link::ALL.len();
+        let finger: Vec<usize> = (0..n)
+            .filter(|&l| is_finger_segment(l) && self.rest_volumes[l] > 0.0)
+            .collect();
+        let mut target = self.rest_volumes.clone();
+        let mut start = vec![0.0; n];
+        let mut best: Option<(f64, Relaxed)> = None;
+        let mut iterations = 0;
+        let mut dqs_alone = None;
+        for round in 0..=RELAX_ROUNDS {
+            let (mut skin, mut nodes, correction) =
+                self.skin_and_nodes(hand, pose, correct, opts, &target, &start)?;
+            start.clone_from(&correction.amplitude);
+            iterations += correction.iterations;
+            // DQS alone is the same every round; the first round measured it against rest.
+            dqs_alone.get_or_insert(correction.worst_before);
+            let skin_unfolded = self.unfold_posed_skin(hand, pose, &mut skin);
+            place_boundary_nodes(&self.binding, &skin, &mut nodes)?;
+            let volumes = segment_volumes(&nodes, &self.tets, &self.labels, n);
+            let worst = finger
+                .iter()
+                .map(|&l| (volumes[l] / self.rest_volumes[l] - 1.0).abs())
+                .fold(0.0, f64::max);
+            if best.as_ref().is_none_or(|(w, _)| worst < *w) {
+                let relaxed = Relaxed {
+                    skin,
+                    nodes,
+                    correction,
+                    skin_unfolded,
+                };
+                best = Some((worst, relaxed));
+            }
+            if !correct || worst <= opts.tolerance || round == RELAX_ROUNDS {
+                break;
+            }
+            for &l in &finger {
+                target[l] += self.rest_volumes[l] - volumes[l];
+            }
+        }
+        let mut relaxed = best.expect("at least one round").1;
+        relaxed.correction.iterations = iterations;
+        relaxed.correction.worst_before = dqs_alone.unwrap_or(0.0);
+        Ok(relaxed)
     }
 
     /// `skin`, `hand`'s skin skinned in `pose`, relaxed where a face turned over from its
@@ -422,7 +502,8 @@ impl VolumeRig {
         unfold_skin(rest, &rest_guard, skin, &guard, topology, UNFOLD_PASSES)
     }
 
-    /// Skin and tet nodes skinned by DQS and, if `correct`, moved by the bulge field; the
+    /// Skin and tet nodes skinned by DQS and, if `correct`, moved by the bulge field that gives
+    /// the finger segments the volumes `target` (Newton from the amplitudes `start`); the
     /// nodes' boundary is not yet on the skin.
     fn skin_and_nodes(
         &self,
@@ -430,6 +511,8 @@ impl VolumeRig {
         pose: &Pose,
         correct: bool,
         opts: &VolumeOptions,
+        target: &[f64],
+        start: &[f64],
     ) -> Result<(TriMesh, Vec<Point>, VolumeCorrection)> {
         let n = Link::ALL.len();
         let tr = link_transforms(&hand.skeleton, pose);
@@ -442,7 +525,8 @@ impl VolumeRig {
                 &basis,
                 &self.tets,
                 &self.labels,
-                &self.rest_volumes,
+                target,
+                start,
                 opts,
             );
             skin.vertices = BulgeBasis::new(&skin.vertices, &hand.weights, &hand.skeleton, &tr)
