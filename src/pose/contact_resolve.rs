@@ -203,6 +203,15 @@ pub fn resolve_finger_contacts_on<E>(
         }
         cur = clamp_pose(&cur).0;
         (pen, posed) = measure(&cur)?;
+        log::debug!(
+            "contact round {iterations}: deepest {:.2} mm; {}",
+            pen.depth_mm,
+            pen.by_pair
+                .iter()
+                .map(|((a, b), d)| format!("{a:?} in {b:?} {d:.1}"))
+                .collect::<Vec<_>>()
+                .join(", ")
+        );
         if pen.depth_mm < best.0 {
             best = (pen.depth_mm, cur.clone());
         }
