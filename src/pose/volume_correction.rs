@@ -79,7 +79,8 @@ pub struct VolumeCorrection {
     pub amplitude: Vec<f64>,
     /// Newton steps taken.
     pub iterations: usize,
-    /// Largest |relative volume change| of a finger segment before the correction.
+    /// Largest |relative volume change| of a finger segment before the correction (at the
+    /// starting amplitudes; zeros: DQS alone).
     pub worst_before: f64,
     /// And after.
     pub worst_after: f64,
@@ -173,10 +174,10 @@ pub(crate) fn preserve_segment_volumes(
             .map(|&l| (v[l] / target[l] - 1.0).abs())
             .fold(0.0, f64::max)
     };
-    let worst_before = worst(&segment_volumes(posed, tets, labels, n));
     let mut amplitude = start.to_vec();
     let mut v = segment_volumes(&basis.apply(posed, &amplitude), tets, labels, n);
-    let mut worst_after = worst(&v);
+    let worst_before = worst(&v);
+    let mut worst_after = worst_before;
     let mut iterations = 0;
     // The forward-difference step: a 2 % swelling of the blended band, small against the
     // amplitudes found (0.2-0.8) and large against rounding.
@@ -437,9 +438,6 @@ impl VolumeRig {
         opts: &VolumeOptions,
     ) -> Result<Relaxed> {
         let n = Link::ALL.len();
-        let finger: Vec<usize> = (0..n)
-            .filter(|&l| is_finger_segment(l) && self.rest_volumes[l] > 0.0)
-            .collect();
         let mut target = self.rest_volumes.clone();
         let mut start = vec![0.0; n];
         let mut best: Option<(f64, Relaxed)> = None;
@@ -450,15 +448,14 @@ impl VolumeRig {
                 self.skin_and_nodes(hand, pose, correct, opts, &target, &start)?;
             start.clone_from(&correction.amplitude);
             iterations += correction.iterations;
-            // DQS alone is the same every round; the first round measured it against rest.
+            // DQS alone is the same every round; the first round, from zero amplitudes towards
+            // the rest volumes, measured it.
             dqs_alone.get_or_insert(correction.worst_before);
             let skin_unfolded = self.unfold_posed_skin(hand, pose, &mut skin);
             place_boundary_nodes(&self.binding, &skin, &mut nodes)?;
             let volumes = segment_volumes(&nodes, &self.tets, &self.labels, n);
-            let worst = finger
-                .iter()
-                .map(|&l| (volumes[l] / self.rest_volumes[l] - 1.0).abs())
-                .fold(0.0, f64::max);
+            let changes = finger_volume_changes(&self.rest_volumes, &volumes);
+            let worst = changes.iter().map(|c| c.1.abs()).fold(0.0, f64::max);
             if best.as_ref().is_none_or(|(w, _)| worst < *w) {
                 let relaxed = Relaxed {
                     skin,
@@ -471,7 +468,8 @@ impl VolumeRig {
             if !correct || worst <= opts.tolerance || round == RELAX_ROUNDS {
                 break;
             }
-            for &l in &finger {
+            for (l, _) in changes {
+                let l = l.index();
                 target[l] += self.rest_volumes[l] - volumes[l];
             }
         }
