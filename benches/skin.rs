@@ -104,7 +104,7 @@ fn skin(c: &mut Criterion) {
 /// 1 s at the default resolution): pre-alignment, posture fit, posing, QEM, landmark fit,
 /// transfer; the posture fit alone; and the stage at full resolution (fit under 3 s).
 fn skin_stage(c: &mut Criterion) {
-    use ergohand::skin::pipeline::{fit_skin, FitResolution, SkinOptions};
+    use ergohand::skin::pipeline::{fit_skin, FitResolution, PriorChoice, SkinOptions};
     use ergohand::synth::{simulate, Posture, Preset, SynthOptions};
     let s = simulate(&SynthOptions {
         duration_s: Some(20.0),
@@ -135,6 +135,15 @@ fn skin_stage(c: &mut Criterion) {
     g.sample_size(10);
     g.bench_function("default_low_resolution", |b| {
         b.iter(|| run(black_box(&SkinOptions::default())))
+    });
+    // The default adds the shipped shape prior; the paper's fit leaves it out.
+    g.bench_function("default_low_resolution_without_shape_prior", |b| {
+        b.iter(|| {
+            run(black_box(&SkinOptions {
+                shape_prior: PriorChoice::None,
+                ..SkinOptions::default()
+            }))
+        })
     });
     g.bench_function("full_resolution", |b| {
         b.iter(|| {

@@ -128,8 +128,9 @@ enum Command {
         #[arg(long, default_value_t = ergohand::skin::pipeline::CALIPER_ROUNDS)]
         caliper_rounds: usize,
         /// Shape prior of the skin fit for what no landmark or caliper reaches: `builtin` (the
-        /// one shipped with the generic template), a file written by `ergohand shape-prior`,
-        /// or `none` (the default: the template's shape, as the paper).
+        /// one shipped with the generic template; the default on that template, none on
+        /// another), a file written by `ergohand shape-prior`, or `none` (the template's shape,
+        /// as the paper).
         #[arg(long, value_name = "builtin|FILE|none")]
         shape_prior: Option<PathBuf>,
         /// A template folder (right.glb and/or left.glb, optional template-spec.toml and

@@ -316,7 +316,7 @@ fn skin_summary(skin: &SkinFit, opts: &SkinOptions) -> SkinSummary {
         fit_resolution: opts.resolution,
         template_posed: skin.posture.is_some(),
         centre_weight: opts.centre_weight,
-        shape_prior: opts.shape_prior.as_ref().map(|p| p.summary()),
+        shape_prior: skin.shape_prior.clone(),
         iterations: skin.iterations,
         converged: skin.converged,
         posture_deg: skin.posture.as_ref().map(|p| {

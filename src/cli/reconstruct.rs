@@ -5,7 +5,7 @@ use super::Voice;
 use crate::error::{Error, Result};
 use crate::io::output_paths::{check_output_dir, Inputs, MODEL_FILES};
 use crate::io::{atomic, obj, Units};
-use crate::skin::pipeline::{FitResolution, SkinOptions};
+use crate::skin::pipeline::{FitResolution, PriorChoice, SkinOptions};
 use crate::template;
 use std::path::Path;
 
@@ -40,20 +40,18 @@ pub fn skin_options(
     })
 }
 
-/// The skin's shape prior from `--shape-prior`: none when absent or `none`, the shipped one
-/// for `builtin`, else the file (an error naming it when it is not a prior).
-pub fn shape_prior_option(
-    arg: Option<&Path>,
-) -> Result<Option<std::sync::Arc<crate::skin::shape_prior::ShapePrior>>> {
+/// The skin's shape prior from `--shape-prior`: when absent the one shipped with the generic
+/// template on that template (none on another), none for `none`, the shipped one for `builtin`,
+/// else the file (an error naming it when it is not a prior).
+pub fn shape_prior_option(arg: Option<&Path>) -> Result<PriorChoice> {
     use crate::skin::shape_prior::ShapePrior;
     match arg {
-        None => Ok(None),
-        Some(p) if p == Path::new("none") => Ok(None),
-        Some(p) if p == Path::new("builtin") => Ok(Some(ShapePrior::builtin())),
-        Some(p) => Ok(Some(std::sync::Arc::new(ShapePrior::from_json(
-            &atomic::read_bytes(p)?,
-            p,
-        )?))),
+        None => Ok(PriorChoice::Shipped),
+        Some(p) if p == Path::new("none") => Ok(PriorChoice::None),
+        Some(p) if p == Path::new("builtin") => Ok(PriorChoice::Given(ShapePrior::builtin())),
+        Some(p) => Ok(PriorChoice::Given(std::sync::Arc::new(
+            ShapePrior::from_json(&atomic::read_bytes(p)?, p)?,
+        ))),
     }
 }
 
