@@ -42,14 +42,18 @@ pub fn demo(out: &Path) -> Result<()> {
     let model_dir = out.join("model");
     let report_dir = out.join("report");
     let t2 = Instant::now();
-    let model = reconstruct_job(
+    // Every stage's warnings, as report.json lists them (the link model's among them).
+    let model_warnings = reconstruct_job(
         &subject_dir,
         &model_dir,
         &SkinOptions::default(),
         None,
         None,
         Voice::Nested,
-    )?;
+    )?
+    .report
+    .warnings
+    .len();
     let link_s = t2.elapsed().as_secs_f64();
     // The captured grasp replayed with the subject's own hand, where `validate` finds it.
     let t3 = Instant::now();
@@ -128,16 +132,10 @@ pub fn demo(out: &Path) -> Result<()> {
             v
         };
         let (e3, e1) = (errs(true), errs(false));
-        // Every stage's warnings as report.json lists them, not the link model's alone.
-        let warnings = std::fs::read_to_string(model_dir.join("report.json"))
-            .ok()
-            .and_then(|t| serde_json::from_str::<serde_json::Value>(&t).ok())
-            .and_then(|r| r["warnings"].as_array().map(Vec::len))
-            .unwrap_or(model.warnings.len());
         println!(
             "  reconstruction (link model, skin, tet, hand) in {:.2} s, {} warnings (report.json); link model centre error vs truth: 3-DOF median {:.2} mm (max {:.2}), 1-DOF median {:.2} mm (max {:.2})",
             link_s,
-            warnings,
+            model_warnings,
             e3[e3.len() / 2],
             e3.last().copied().unwrap_or(0.0),
             e1[e1.len() / 2],

@@ -82,7 +82,7 @@ pub fn reconstruct_from(
     opts: &SkinOptions,
     template: Option<&Path>,
 ) -> Result<crate::link::LinkModel> {
-    reconstruct_job(subject_dir, out, opts, template, None, Voice::Command)
+    reconstruct_job(subject_dir, out, opts, template, None, Voice::Command).map(|r| r.link_model)
 }
 
 /// [`reconstruct_with`] with the template's section 3.7 work done beforehand: a batch prepares
@@ -95,11 +95,12 @@ pub fn reconstruct_prepared(
     opts: &SkinOptions,
     prepared: Option<&crate::tet::TemplateTet>,
 ) -> Result<crate::link::LinkModel> {
-    reconstruct_job(subject_dir, out, opts, None, prepared, Voice::Command)
+    reconstruct_job(subject_dir, out, opts, None, prepared, Voice::Command).map(|r| r.link_model)
 }
 
 /// [`reconstruct_prepared`], speaking with `voice`: the library's
-/// [`crate::reconstruct::reconstruct`], its warnings logged, its files written.
+/// [`crate::reconstruct::reconstruct`], its warnings logged, its files written; the whole
+/// reconstruction returned (what `report.json` holds among it).
 pub(crate) fn reconstruct_job(
     subject_dir: &Path,
     out: &Path,
@@ -107,7 +108,7 @@ pub(crate) fn reconstruct_job(
     template_dir: Option<&Path>,
     prepared: Option<&crate::tet::TemplateTet>,
     voice: Voice,
-) -> Result<crate::link::LinkModel> {
+) -> Result<crate::reconstruct::Reconstruction> {
     let subject = crate::mocap::subject::Subject::load(subject_dir)?;
     let inputs = Inputs::files(
         std::iter::once(subject.toml_path())
@@ -166,7 +167,7 @@ pub(crate) fn reconstruct_job(
         t["hand"],
         out.join("hand.glb").display()
     );
-    Ok(r.link_model)
+    Ok(r)
 }
 
 /// The model folder (spec section 3): the seven files of [`MODEL_FILES`], each written to a

@@ -171,14 +171,15 @@ impl PriorChoice {
             PriorChoice::None => Ok(None),
             PriorChoice::Shipped => {
                 let p = ShapePrior::builtin();
-                if p.vertices != vertices {
-                    log::info!(
-                        "skin: the shipped shape prior belongs to the generic template; this \
-                         template's skin is fitted without one (give --shape-prior FILE for a \
-                         prior trained on it)"
-                    );
+                if p.vertices == vertices {
+                    return Ok(Some(p));
                 }
-                Ok((p.vertices == vertices).then_some(p))
+                log::info!(
+                    "skin: the shipped shape prior belongs to the generic template; this \
+                     template's skin is fitted without one (give --shape-prior FILE for a \
+                     prior trained on it)"
+                );
+                Ok(None)
             }
             PriorChoice::Given(p) if p.vertices == vertices => Ok(Some(p.clone())),
             PriorChoice::Given(p) => Err(Error::invalid(format!(
@@ -917,6 +918,14 @@ mod tests {
         assert!(!w[0].contains("cannot follow"), "{w:#?}");
     }
 
+    /// The default options without the shape prior: the paper's fit.
+    fn paper_fit() -> SkinOptions {
+        SkinOptions {
+            shape_prior: PriorChoice::None,
+            ..SkinOptions::default()
+        }
+    }
+
     /// A simulated subject captured with the error model `err`, its hand's template and its
     /// estimated link model.
     fn subject_template_model_with(
@@ -966,10 +975,7 @@ mod tests {
             let mean = d.iter().sum::<f64>() / d.len() as f64;
             (mean, d.iter().copied().fold(0.0, f64::max))
         };
-        let paper = SkinOptions {
-            shape_prior: PriorChoice::None,
-            ..SkinOptions::default()
-        };
+        let paper = paper_fit();
         let fit = run(&paper);
         assert_eq!(fit.high.faces, t.mesh.faces);
         assert_eq!(fit.high.n_vertices(), t.mesh.n_vertices());
@@ -1045,15 +1051,7 @@ mod tests {
         let tree = AabbTree::new(&s.reference);
         let mean = |m: &TriMesh| mean_distance(&tree, m);
         let fit = fit_with_model(&s, &t, &model, &SkinOptions::default());
-        let paper = fit_with_model(
-            &s,
-            &t,
-            &model,
-            &SkinOptions {
-                shape_prior: PriorChoice::None,
-                ..SkinOptions::default()
-            },
-        );
+        let paper = fit_with_model(&s, &t, &model, &paper_fit());
         eprintln!(
             "{} calipers measured; skin to reference {:.2} mm with the prior, {:.2} without",
             fit.caliper_residuals_mm.len(),
@@ -1310,10 +1308,7 @@ mod tests {
                     s.subject.marker_offset_mm,
                     Some(&model),
                     // Without a prior the markers pin the apex (with one they only aim).
-                    &SkinOptions {
-                        shape_prior: PriorChoice::None,
-                        ..SkinOptions::default()
-                    },
+                    &paper_fit(),
                 )
                 .unwrap()
             };
@@ -1379,10 +1374,7 @@ mod tests {
         );
         t.spec.landmarks.remove("M_TIP");
         // Without a shape prior the fingertip markers pin the apex: each is a landmark.
-        let paper = SkinOptions {
-            shape_prior: PriorChoice::None,
-            ..SkinOptions::default()
-        };
+        let paper = paper_fit();
         let fit = fit_with_model(&s, &t, &model, &paper);
         assert!(fit.landmark_residuals_mm.contains_key("I_TIP"));
         assert!(!fit.landmark_residuals_mm.contains_key("M_TIP"));
