@@ -145,6 +145,15 @@ fn skin_stage(c: &mut Criterion) {
             }))
         })
     });
+    // The fingers' sections scaled to their calipers after the rounds (opt-in).
+    g.bench_function("default_low_resolution_with_section_scaling", |b| {
+        b.iter(|| {
+            run(black_box(&SkinOptions {
+                section_scaling: true,
+                ..SkinOptions::default()
+            }))
+        })
+    });
     g.bench_function("full_resolution", |b| {
         b.iter(|| {
             run(black_box(&SkinOptions {

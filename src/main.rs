@@ -119,6 +119,11 @@ enum Command {
         /// the fit's displacement there (for comparison).
         #[arg(long)]
         no_unfold: bool,
+        /// After the caliper rounds, scale each finger's sections across its bones until a
+        /// caliper on the skin reads the given dimensions (finger calipers within about 0.3 mm
+        /// instead of the rounds' 1 mm slack).
+        #[arg(long)]
+        section_scaling: bool,
         /// Weight of the joint-centre terms of the skin fit; 0 leaves them out.
         #[arg(long, default_value_t = ergohand::skin::pipeline::CENTRE_WEIGHT)]
         centre_weight: f64,
@@ -317,6 +322,7 @@ fn main() -> ExitCode {
             fit_resolution,
             no_template_posing,
             no_unfold,
+            section_scaling,
             centre_weight,
             caliper_rounds,
             shape_prior,
@@ -327,6 +333,7 @@ fn main() -> ExitCode {
                     caliper_rounds,
                     shape_prior: cli::reconstruct::shape_prior_option(shape_prior.as_deref())?,
                     unfold: !no_unfold,
+                    section_scaling,
                     ..o
                 })
             })

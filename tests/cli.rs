@@ -1492,6 +1492,36 @@ fn the_template_cannot_reach_the_procedural_body() {
     ]);
     assert!(p.status.success(), "{}", stderr(&p));
     finger_segments_keep_their_volume(&prior, &fist, "prior fist");
+    // With the sections scaled to their calipers, a caliper on the fingers reads the given
+    // values where the caliper rounds left them up to their slack off.
+    let scaled_model = sdir.join("out-scaled");
+    let r = ergohand(&[
+        "reconstruct",
+        sdir.to_str().unwrap(),
+        "--out",
+        scaled_model.to_str().unwrap(),
+        "--section-scaling",
+        "-q",
+    ]);
+    assert!(r.status.success(), "{}", stderr(&r));
+    let finger_worst = |model: &Path| -> f64 {
+        let report: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(model.join("report.json")).unwrap())
+                .unwrap();
+        let own = report["skin"]["caliper_residuals_mm"].as_object().unwrap();
+        assert_eq!(own.len(), 22, "{own:?}");
+        own.iter()
+            .filter(|(n, _)| n.starts_with("finger"))
+            .map(|(_, r)| r.as_f64().unwrap().abs())
+            .fold(0.0, f64::max)
+    };
+    let (scaled, plain) = (finger_worst(&scaled_model), finger_worst(&prior));
+    eprintln!("finger calipers, worst miss: {plain:.2} mm unscaled, {scaled:.2} scaled");
+    assert!(scaled <= 0.3 && scaled < plain, "{scaled} vs {plain}");
+    assert_ne!(
+        std::fs::read(prior.join("skin.obj")).unwrap(),
+        std::fs::read(scaled_model.join("skin.obj")).unwrap()
+    );
 }
 
 /// Every finger segment of the posed tetrahedral mesh `posed` (written by `pose` from the model

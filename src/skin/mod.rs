@@ -18,6 +18,7 @@ pub mod distal_frame;
 pub mod pipeline;
 pub mod posture_fit;
 pub mod section_centre;
+pub mod section_scale;
 pub mod shape_prior;
 pub mod simplify;
 pub mod transfer;

@@ -27,6 +27,7 @@ use super::correspondence::{
 use super::distal_frame::{distal_frames_at_tips, distal_frames_by_homology};
 use super::posture_fit::{fit_posture, PostureFit, PostureTargets, SkinnedMarker};
 use super::section_centre::{centre_on_cross_section, centre_ring, depth_offsets, depth_rings};
+use super::section_scale::{section_scales, section_scaling};
 use super::shape_prior::{
     fold_free_displacement, subject_features, JointLine, ShapePrior, FEATURE_LIMIT_SD,
 };
@@ -61,6 +62,10 @@ pub const CENTRE_WEIGHT: f64 = 0.0;
 /// Default caliper rounds of the skin fit (see [`SkinOptions::caliper_rounds`]); chosen with
 /// the gain and the finger slack on both simulated bodies (README, "Skin").
 pub const CALIPER_ROUNDS: usize = 6;
+
+/// Measure-and-scale passes of the fingers' sections after the caliper rounds
+/// ([`SkinOptions::section_scaling`]).
+pub(crate) const SECTION_SCALING_PASSES: usize = 3;
 
 /// Default tolerance of the caliper rounds, mm (a caliper's resolution is 0.1 mm).
 pub(crate) const CALIPER_TOLERANCE_MM: f64 = 0.05;
@@ -125,6 +130,11 @@ pub struct SkinOptions {
     /// Shape prior for what no marker and no caliper reaches, added along the fitted skin's
     /// normals before the caliper rounds ([`super::shape_prior`]).
     pub shape_prior: PriorChoice,
+    /// Scale each finger's fine skin across its bones by what a caliper on it still misses
+    /// after the caliper rounds ([`super::section_scale`]); off (the default) leaves the
+    /// rounds' skin. Opt-in while one posed mesh it gives keeps an inverted element (README,
+    /// "Finger sections scaled to their calipers").
+    pub section_scaling: bool,
     /// Relax the fitted skin where it folds ([`super::unfold::unfold_skin`]): the fit on the
     /// simplified template, carried to the fine one by per-face frames, turns faces over where
     /// a coarse triangle spans a crease or the forearm's end; off leaves the transfer as it is
@@ -144,6 +154,7 @@ impl Default for SkinOptions {
             caliper_gain: CALIPER_GAIN,
             finger_caliper_slack_mm: FINGER_CALIPER_SLACK_MM,
             shape_prior: PriorChoice::Shipped,
+            section_scaling: false,
             unfold: true,
         }
     }
@@ -697,8 +708,27 @@ pub fn fit_skin(
     }
     let targets = best_targets;
     // The kept skin's hinge depths, and what its calipers read with them.
-    if full_link_model.is_some() {
+    let depth = full_link_model.is_some();
+    if depth {
         (caliper_residuals_mm, section) = caliper_error(&high, true);
+    }
+    // The fingers' sections scaled on the fine skin to what the rounds left (twice: a scale
+    // moves the section's centre and with it the joint the next measure is taken at).
+    if opts.section_scaling {
+        for _ in 0..SECTION_SCALING_PASSES {
+            let scales = section_scales(&caliper_residuals_mm, dimensions);
+            if scales.is_empty() {
+                break;
+            }
+            let d = section_scaling(&high, &section.1, &template.weights, &scales);
+            for (v, x) in high.vertices.iter_mut().zip(&d) {
+                *v += x;
+            }
+            for (v, &k) in low.vertices.iter_mut().zip(&simplified.kept) {
+                *v += d[k];
+            }
+            (caliper_residuals_mm, section) = caliper_error(&high, depth);
+        }
     }
     let (inverted_faces, degenerate_faces) = face_check(&guard, &high);
 
@@ -864,6 +894,7 @@ mod tests {
     use super::*;
     use crate::anatomy::tip_marker_names;
     use crate::geometry::closest_point::AabbTree;
+    use crate::measure::caliper::finger_joint_section;
     use crate::synth::{simulate_with, Preset, SynthOptions};
     use crate::template::load_template;
 
@@ -1201,6 +1232,77 @@ mod tests {
         assert!(worst(&rounds) * 5.0 < worst(&paper));
         assert!(mean(&rounds.high) < mean(&paper.high));
         assert_eq!(rounds.high.faces, t.mesh.faces);
+    }
+
+    /// On a hand unlike the template the caliper rounds leave a finger up to their slack
+    /// thinner or thicker than its calipers; scaled across its bones, a caliper on the fingers
+    /// reads the given values, the true hand's own calipers (measured on the simulated hand at
+    /// its true joints, an independent reading) come nearer, and the surface stays as close to
+    /// the CT-like reference and homologous.
+    #[test]
+    fn section_scaling_makes_the_fingers_read_their_calipers() {
+        let (s, t, model) = procedural_seven();
+        let run = |on: bool| {
+            let opts = SkinOptions {
+                section_scaling: on,
+                ..SkinOptions::default()
+            };
+            fit_with_model(&s, &t, &model, &opts)
+        };
+        let (plain, scaled) = (run(false), run(true));
+        let finger_worst = |f: &SkinFit| {
+            f.caliper_residuals_mm
+                .iter()
+                .filter(|(n, _)| n.starts_with("finger"))
+                .fold(0.0_f64, |w, (_, r)| w.max(r.abs()))
+        };
+        eprintln!(
+            "finger calipers, worst miss: {:.2} -> {:.2} mm",
+            finger_worst(&plain),
+            finger_worst(&scaled)
+        );
+        assert_eq!(scaled.caliper_residuals_mm.len(), 22);
+        assert!(finger_worst(&plain) > 0.5);
+        assert!(finger_worst(&scaled) <= 0.3);
+        // Against the true hand: each finger dimension measured on both at their own joints.
+        let read = |m: &TriMesh, sk: &Skeleton, d: Dimension| -> f64 {
+            let (b, t) = finger_joint_section(m, sk, d.section_joint().unwrap()).unwrap();
+            match d {
+                Dimension::BreadthProximal(_) | Dimension::BreadthDistal(_) => b,
+                _ => t,
+            }
+        };
+        let true_error = |f: &SkinFit| -> f64 {
+            let sk = &f.link_model.as_ref().expect("a link model").skeleton;
+            let fingers: Vec<Dimension> = s
+                .subject
+                .dimensions
+                .keys()
+                .copied()
+                .filter(|d| d.section_joint().is_some())
+                .collect();
+            fingers
+                .iter()
+                .map(|&d| (read(&f.high, sk, d) - read(&s.true_skin, &s.true_skeleton, d)).abs())
+                .sum::<f64>()
+                / fingers.len() as f64
+        };
+        eprintln!(
+            "finger calipers against the true hand, mean miss: {:.2} -> {:.2} mm",
+            true_error(&plain),
+            true_error(&scaled)
+        );
+        assert!(true_error(&scaled) < true_error(&plain));
+        let tree = AabbTree::new(&s.reference);
+        let (a, b) = (
+            mean_distance(&tree, &plain.high),
+            mean_distance(&tree, &scaled.high),
+        );
+        eprintln!("skin to reference: {a:.3} -> {b:.3} mm");
+        assert!(b < a + 0.02);
+        assert_eq!(scaled.high.faces, t.mesh.faces);
+        assert_eq!(scaled.low.faces, plain.low.faces);
+        assert!(scaled.inverted_faces <= plain.inverted_faces);
     }
 
     /// The shipped shape prior on a procedural hand outside its training population (seed 7;

@@ -242,56 +242,88 @@ struct Model {
     coefficients: DMatrix<f64>,
 }
 
-impl Model {
-    fn predict(&self, z: &DVector<f64>) -> DVector<f64> {
-        &self.mean + &self.modes * (&self.coefficients * z)
+/// The mean field and the leading principal modes of a set of fields, with each field's scores.
+/// The first `k` modes of a PCA do not depend on how many are kept, and each mode's regression
+/// is separate, so one PCA serves every `(k, ridge)` of the cross-validation's grid.
+struct Pca {
+    mean: DVector<f64>,
+    /// V × K_max, unit columns.
+    modes: DMatrix<f64>,
+    /// n × K_max.
+    scores: DMatrix<f64>,
+}
+
+impl Pca {
+    /// The mean of `fields` and their `k` leading modes (at most `n - 1`).
+    fn new(fields: &[&DVector<f64>], k: usize) -> Pca {
+        let n = fields.len();
+        let v = fields[0].len();
+        let mut mean = DVector::zeros(v);
+        for x in fields {
+            mean += *x;
+        }
+        mean /= n as f64;
+        let centred = DMatrix::from_fn(v, n, |i, j| fields[j][i] - mean[i]);
+        let k = k.min(n.saturating_sub(1));
+        let mut modes = DMatrix::zeros(v, k);
+        if k > 0 {
+            // The subjects' Gram matrix has the covariance's non-zero eigenvalues (n << v).
+            let gram = centred.transpose() * &centred;
+            let eig = SymmetricEigen::new(gram);
+            let mut order: Vec<usize> = (0..n).collect();
+            order.sort_by(|&a, &b| eig.eigenvalues[b].total_cmp(&eig.eigenvalues[a]));
+            for (c, &e) in order.iter().take(k).enumerate() {
+                let u = &centred * eig.eigenvectors.column(e);
+                let norm = u.norm();
+                if norm > 0.0 {
+                    modes.set_column(c, &(u / norm));
+                }
+            }
+        }
+        let scores = centred.transpose() * &modes;
+        Pca {
+            mean,
+            modes,
+            scores,
+        }
+    }
+
+    /// The ridge regression of the first `k` modes' scores on the standardised features `zm`
+    /// (n × F, rows as the fields), K × F.
+    fn coefficients(&self, zm: &DMatrix<f64>, k: usize, ridge: f64) -> DMatrix<f64> {
+        let k = k.min(self.modes.ncols());
+        let f = zm.ncols();
+        if k == 0 {
+            return DMatrix::zeros(0, f);
+        }
+        let a = zm.transpose() * zm + DMatrix::identity(f, f) * ridge;
+        let b = zm.transpose() * self.scores.columns(0, k);
+        a.cholesky()
+            .map(|c| c.solve(&b).transpose())
+            .unwrap_or_else(|| DMatrix::zeros(k, f))
+    }
+
+    /// The field predicted for standardised features `z` by the first `coefficients.nrows()`
+    /// modes.
+    fn predict(&self, coefficients: &DMatrix<f64>, z: &DVector<f64>) -> DVector<f64> {
+        let k = coefficients.nrows();
+        &self.mean + self.modes.columns(0, k) * (coefficients * z)
     }
 }
 
+/// The features of `z`'s subjects as rows (n × F).
+fn feature_rows(z: &[&DVector<f64>]) -> DMatrix<f64> {
+    DMatrix::from_fn(z.len(), z.first().map_or(0, |r| r.len()), |i, j| z[i][j])
+}
+
 /// Fit the mean, `k` modes and the ridge regression of the scores on `z` (rows: subjects).
-fn fit_model(fields: &[&DVector<f64>], z: &[DVector<f64>], k: usize, ridge: f64) -> Model {
-    let n = fields.len();
-    let v = fields[0].len();
-    let f = z[0].len();
-    let mut mean = DVector::zeros(v);
-    for x in fields {
-        mean += *x;
-    }
-    mean /= n as f64;
-    let centred = DMatrix::from_fn(v, n, |i, j| fields[j][i] - mean[i]);
-    let k = k.min(n.saturating_sub(1));
-    if k == 0 {
-        return Model {
-            mean,
-            modes: DMatrix::zeros(v, 0),
-            coefficients: DMatrix::zeros(0, f),
-        };
-    }
-    // The subjects' Gram matrix has the covariance's non-zero eigenvalues (n << v).
-    let gram = centred.transpose() * &centred;
-    let eig = SymmetricEigen::new(gram);
-    let mut order: Vec<usize> = (0..n).collect();
-    order.sort_by(|&a, &b| eig.eigenvalues[b].total_cmp(&eig.eigenvalues[a]));
-    let mut modes = DMatrix::zeros(v, k);
-    for (c, &e) in order.iter().take(k).enumerate() {
-        let u = &centred * eig.eigenvectors.column(e);
-        let norm = u.norm();
-        if norm > 0.0 {
-            modes.set_column(c, &(u / norm));
-        }
-    }
-    // Scores (n × k) and the ridge regression on the standardised features (n × f).
-    let scores = centred.transpose() * &modes;
-    let zm = DMatrix::from_fn(n, f, |i, j| z[i][j]);
-    let a = zm.transpose() * &zm + DMatrix::identity(f, f) * ridge;
-    let b = zm.transpose() * scores;
-    let coefficients = a
-        .cholesky()
-        .map(|c| c.solve(&b).transpose())
-        .unwrap_or_else(|| DMatrix::zeros(k, f));
+fn fit_model(fields: &[&DVector<f64>], z: &[&DVector<f64>], k: usize, ridge: f64) -> Model {
+    let pca = Pca::new(fields, k);
+    let coefficients = pca.coefficients(&feature_rows(z), k, ridge);
+    let k = coefficients.nrows();
     Model {
-        mean,
-        modes,
+        mean: pca.mean,
+        modes: pca.modes.columns(0, k).into_owned(),
         coefficients,
     }
 }
@@ -310,9 +342,9 @@ fn rms(a: &DVector<f64>, b: Option<&DVector<f64>>, measured: &[bool]) -> f64 {
 }
 
 /// Modes tried by the cross-validation.
-pub(crate) const MODE_CHOICES: [usize; 6] = [0, 1, 2, 4, 6, 8];
+pub(crate) const MODE_CHOICES: [usize; 9] = [0, 1, 2, 3, 4, 6, 8, 12, 16];
 /// Ridge parameters tried by the cross-validation (on standardised features).
-pub(crate) const RIDGE_CHOICES: [f64; 5] = [0.3, 1.0, 3.0, 10.0, 30.0];
+pub(crate) const RIDGE_CHOICES: [f64; 7] = [0.1, 0.3, 1.0, 3.0, 10.0, 30.0, 100.0];
 
 /// Train a prior on `samples` (at least 3, all of the same template): the number of modes from
 /// [`MODE_CHOICES`] and the ridge from [`RIDGE_CHOICES`] that give the least mean leave-one-out
@@ -363,40 +395,50 @@ pub fn train_shape_prior(samples: &[PriorSample]) -> Result<ShapePrior> {
         .iter()
         .map(|s| standardise(&s.features, &names, &fmean, &fsd))
         .collect();
-    let loo = |k: usize, ridge: f64| -> Vec<CrossValidation> {
-        (0..samples.len())
-            .into_par_iter()
-            .map(|out| {
-                let idx: Vec<usize> = (0..samples.len()).filter(|&i| i != out).collect();
-                let f: Vec<&DVector<f64>> = idx.iter().map(|&i| &fields[i]).collect();
-                let zz: Vec<DVector<f64>> = idx.iter().map(|&i| z[i].clone()).collect();
-                let model = fit_model(&f, &zz, k, ridge);
-                let p = model.predict(&z[out]);
-                CrossValidation {
-                    subject: samples[out].name.clone(),
-                    without_mm: rms(&fields[out], None, &samples[out].measured),
-                    with_mm: rms(&fields[out], Some(&p), &samples[out].measured),
-                }
-            })
-            .collect()
-    };
+    // Per left-out subject: one PCA of the others with the most modes tried, then every
+    // (modes, ridge) of the grid.
+    let grid: Vec<(usize, f64)> = MODE_CHOICES
+        .iter()
+        .flat_map(|&k| {
+            RIDGE_CHOICES
+                .iter()
+                .filter(move |&&r| k > 0 || r == RIDGE_CHOICES[0])
+                .map(move |&r| (k, r))
+        })
+        .collect();
+    let k_max = MODE_CHOICES.iter().copied().max().unwrap_or(0);
+    let per_subject: Vec<Vec<CrossValidation>> = (0..samples.len())
+        .into_par_iter()
+        .map(|out| {
+            let idx: Vec<usize> = (0..samples.len()).filter(|&i| i != out).collect();
+            let f: Vec<&DVector<f64>> = idx.iter().map(|&i| &fields[i]).collect();
+            let zm = feature_rows(&idx.iter().map(|&i| &z[i]).collect::<Vec<_>>());
+            let pca = Pca::new(&f, k_max);
+            let without_mm = rms(&fields[out], None, &samples[out].measured);
+            grid.iter()
+                .map(|&(k, ridge)| {
+                    let p = pca.predict(&pca.coefficients(&zm, k, ridge), &z[out]);
+                    CrossValidation {
+                        subject: samples[out].name.clone(),
+                        without_mm,
+                        with_mm: rms(&fields[out], Some(&p), &samples[out].measured),
+                    }
+                })
+                .collect()
+        })
+        .collect();
     let mut best: Option<(f64, usize, f64, Vec<CrossValidation>)> = None;
-    for k in MODE_CHOICES {
-        for ridge in RIDGE_CHOICES {
-            if k == 0 && ridge != RIDGE_CHOICES[0] {
-                continue;
-            }
-            let cv = loo(k, ridge);
-            let score = cv.iter().map(|c| c.with_mm).sum::<f64>() / cv.len() as f64;
-            log::debug!("shape prior: {k} modes, ridge {ridge}: leave-one-out RMS {score:.3} mm");
-            if best.as_ref().is_none_or(|b| score < b.0) {
-                best = Some((score, k, ridge, cv));
-            }
+    for (g, &(k, ridge)) in grid.iter().enumerate() {
+        let cv: Vec<CrossValidation> = per_subject.iter().map(|c| c[g].clone()).collect();
+        let score = cv.iter().map(|c| c.with_mm).sum::<f64>() / cv.len() as f64;
+        log::debug!("shape prior: {k} modes, ridge {ridge}: leave-one-out RMS {score:.3} mm");
+        if best.as_ref().is_none_or(|b| score < b.0) {
+            best = Some((score, k, ridge, cv));
         }
     }
     let (_, k, ridge, cv) = best.expect("the grid is not empty");
     let all: Vec<&DVector<f64>> = fields.iter().collect();
-    let model = fit_model(&all, &z, k, ridge);
+    let model = fit_model(&all, &z.iter().collect::<Vec<_>>(), k, ridge);
     let quantise = |x: f64, s: f64| (x * s).round() as i32;
     Ok(ShapePrior {
         format: FORMAT.to_string(),
@@ -761,6 +803,40 @@ mod tests {
                 (d, v * scale)
             })
             .collect()
+    }
+
+    /// The cross-validation's shortcut: one PCA with the most modes, truncated to `k` and
+    /// regressed with a ridge, predicts what a model fitted with `k` modes from scratch does
+    /// (the leading modes of a PCA do not depend on how many are kept).
+    #[test]
+    fn one_pca_serves_every_mode_count() {
+        // Deterministic fields and features with structure in several directions.
+        let n = 12;
+        let v = 40;
+        let fields: Vec<DVector<f64>> = (0..n)
+            .map(|j| {
+                DVector::from_fn(v, |i, _| {
+                    let (x, y) = (i as f64, j as f64);
+                    (0.3 * x + y).sin() + 0.5 * (0.7 * x * y).cos() + 0.1 * y
+                })
+            })
+            .collect();
+        let z: Vec<DVector<f64>> = (0..n)
+            .map(|j| DVector::from_fn(3, |k, _| ((j * (k + 2)) as f64 * 0.37).sin()))
+            .collect();
+        let f: Vec<&DVector<f64>> = fields.iter().collect();
+        let zr: Vec<&DVector<f64>> = z.iter().collect();
+        let pca = Pca::new(&f, 8);
+        let zm = feature_rows(&zr);
+        let probe = DVector::from_vec(vec![0.4, -1.1, 0.7]);
+        for k in [0, 1, 3, 8] {
+            for ridge in [0.1, 10.0] {
+                let whole = fit_model(&f, &zr, k, ridge);
+                let want = &whole.mean + &whole.modes * (&whole.coefficients * &probe);
+                let got = pca.predict(&pca.coefficients(&zm, k, ridge), &probe);
+                assert!((want - got).amax() < 1e-9, "k {k}, ridge {ridge}");
+            }
+        }
     }
 
     /// Fields made by a known linear model of two dimensions' logarithms plus a fixed mean:
