@@ -712,8 +712,9 @@ pub fn fit_skin(
     if depth {
         (caliper_residuals_mm, section) = caliper_error(&high, true);
     }
-    // The fingers' sections scaled on the fine skin to what the rounds left (twice: a scale
-    // moves the section's centre and with it the joint the next measure is taken at).
+    // The fingers' sections scaled on the fine skin to what the rounds left, measured again
+    // after each pass: a scale moves the section's centre and with it the joint the next
+    // caliper is read at.
     if opts.section_scaling {
         for _ in 0..SECTION_SCALING_PASSES {
             let scales = section_scales(&caliper_residuals_mm, dimensions);
@@ -894,7 +895,6 @@ mod tests {
     use super::*;
     use crate::anatomy::tip_marker_names;
     use crate::geometry::closest_point::AabbTree;
-    use crate::measure::caliper::finger_joint_section;
     use crate::synth::{simulate_with, Preset, SynthOptions};
     use crate::template::load_template;
 
@@ -1264,35 +1264,26 @@ mod tests {
         assert_eq!(scaled.caliper_residuals_mm.len(), 22);
         assert!(finger_worst(&plain) > 0.5);
         assert!(finger_worst(&scaled) <= 0.3);
-        // Against the true hand: each finger dimension measured on both at their own joints.
-        let read = |m: &TriMesh, sk: &Skeleton, d: Dimension| -> f64 {
-            let (b, t) = finger_joint_section(m, sk, d.section_joint().unwrap()).unwrap();
-            match d {
-                Dimension::BreadthProximal(_) | Dimension::BreadthDistal(_) => b,
-                _ => t,
-            }
-        };
+        // Against the true hand: each finger dimension measured on both at their own joints
+        // (a finger's section needs no landmark).
+        let truth = measure_dimensions(&s.true_skin, &s.true_skeleton, &BTreeMap::new());
         let true_error = |f: &SkinFit| -> f64 {
             let sk = &f.link_model.as_ref().expect("a link model").skeleton;
-            let fingers: Vec<Dimension> = s
+            let read = measure_dimensions(&f.high, sk, &BTreeMap::new());
+            let misses: Vec<f64> = s
                 .subject
                 .dimensions
                 .keys()
-                .copied()
                 .filter(|d| d.section_joint().is_some())
+                .map(|d| (read[d].clone().unwrap() - truth[d].clone().unwrap()).abs())
                 .collect();
-            fingers
-                .iter()
-                .map(|&d| (read(&f.high, sk, d) - read(&s.true_skin, &s.true_skeleton, d)).abs())
-                .sum::<f64>()
-                / fingers.len() as f64
+            misses.iter().sum::<f64>() / misses.len() as f64
         };
+        let (plain_true, scaled_true) = (true_error(&plain), true_error(&scaled));
         eprintln!(
-            "finger calipers against the true hand, mean miss: {:.2} -> {:.2} mm",
-            true_error(&plain),
-            true_error(&scaled)
+            "finger calipers against the true hand, mean miss: {plain_true:.2} -> {scaled_true:.2} mm"
         );
-        assert!(true_error(&scaled) < true_error(&plain));
+        assert!(scaled_true < plain_true);
         let tree = AabbTree::new(&s.reference);
         let (a, b) = (
             mean_distance(&tree, &plain.high),

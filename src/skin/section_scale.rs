@@ -12,11 +12,11 @@
 //! Here the fine skin of each digit is scaled across its bone, anisotropically, by what a
 //! caliper on it misses: at a section (the plane bisecting the two links at the joint, as
 //! the spec measures) the breadth along the joint's axis by `given / measured`, the thickness
-//! square to it likewise. Along the digit the scale is carried by each link: constant over the
-//! distal phalanx (the fingertip follows the distal section), interpolated between two
-//! sections, and brought in smoothly from 1 over the first half of a link that has a section at
-//! its end only (the proximal phalanx from the knuckle, the thumb's from its MCP), so the palm
-//! and the web are not moved. Each vertex moves by its skinning weights' blend of its links'
+//! square to it likewise. Along the digit the scale is carried by each link: interpolated
+//! between two sections, brought in smoothly from 1 over the first half of a link that has a
+//! section at its end only (the proximal phalanx from the knuckle, the thumb's from its MCP), so
+//! the palm and the web are not moved, and faded from the distal section's back to 1 at the
+//! fingertip (the pulp is not the distal joint's section). Each vertex moves by its skinning weights' blend of its links'
 //! displacements, so the seams follow the template's own. The displacement is a scaling about
 //! the link's line and changes neither topology nor the order of the vertices: the skin stays
 //! homologous.

@@ -233,15 +233,6 @@ fn standardise(
     )
 }
 
-/// The linear model in floating point, for training and cross-validation.
-struct Model {
-    mean: DVector<f64>,
-    /// V × K.
-    modes: DMatrix<f64>,
-    /// K × F.
-    coefficients: DMatrix<f64>,
-}
-
 /// The mean field and the leading principal modes of a set of fields, with each field's scores.
 /// The first `k` modes of a PCA do not depend on how many are kept, and each mode's regression
 /// is separate, so one PCA serves every `(k, ridge)` of the cross-validation's grid.
@@ -314,18 +305,6 @@ impl Pca {
 /// The features of `z`'s subjects as rows (n × F).
 fn feature_rows(z: &[&DVector<f64>]) -> DMatrix<f64> {
     DMatrix::from_fn(z.len(), z.first().map_or(0, |r| r.len()), |i, j| z[i][j])
-}
-
-/// Fit the mean, `k` modes and the ridge regression of the scores on `z` (rows: subjects).
-fn fit_model(fields: &[&DVector<f64>], z: &[&DVector<f64>], k: usize, ridge: f64) -> Model {
-    let pca = Pca::new(fields, k);
-    let coefficients = pca.coefficients(&feature_rows(z), k, ridge);
-    let k = coefficients.nrows();
-    Model {
-        mean: pca.mean,
-        modes: pca.modes.columns(0, k).into_owned(),
-        coefficients,
-    }
 }
 
 /// RMS of `a - b` over the `measured` entries.
@@ -438,7 +417,8 @@ pub fn train_shape_prior(samples: &[PriorSample]) -> Result<ShapePrior> {
     }
     let (_, k, ridge, cv) = best.expect("the grid is not empty");
     let all: Vec<&DVector<f64>> = fields.iter().collect();
-    let model = fit_model(&all, &z.iter().collect::<Vec<_>>(), k, ridge);
+    let pca = Pca::new(&all, k);
+    let coefficients = pca.coefficients(&feature_rows(&z.iter().collect::<Vec<_>>()), k, ridge);
     let quantise = |x: f64, s: f64| (x * s).round() as i32;
     Ok(ShapePrior {
         format: FORMAT.to_string(),
@@ -448,23 +428,22 @@ pub fn train_shape_prior(samples: &[PriorSample]) -> Result<ShapePrior> {
         feature_mean: fmean,
         feature_sd: fsd,
         ridge,
-        mean: model
+        mean: pca
             .mean
             .iter()
             .map(|x| quantise(*x, 1.0 / STORED_RESOLUTION_MM))
             .collect(),
-        modes: (0..model.modes.ncols())
+        modes: (0..pca.modes.ncols())
             .map(|c| {
-                model
-                    .modes
+                pca.modes
                     .column(c)
                     .iter()
                     .map(|x| quantise(*x, MODE_SCALE))
                     .collect()
             })
             .collect(),
-        coefficients: (0..model.coefficients.nrows())
-            .map(|r| model.coefficients.row(r).iter().copied().collect())
+        coefficients: (0..coefficients.nrows())
+            .map(|r| coefficients.row(r).iter().copied().collect())
             .collect(),
         cross_validation: cv,
     })
@@ -806,8 +785,8 @@ mod tests {
     }
 
     /// The cross-validation's shortcut: one PCA with the most modes, truncated to `k` and
-    /// regressed with a ridge, predicts what a model fitted with `k` modes from scratch does
-    /// (the leading modes of a PCA do not depend on how many are kept).
+    /// regressed with a ridge, predicts what a PCA of `k` modes from scratch does (the leading
+    /// modes of a PCA do not depend on how many are kept).
     #[test]
     fn one_pca_serves_every_mode_count() {
         // Deterministic fields and features with structure in several directions.
@@ -831,8 +810,8 @@ mod tests {
         let probe = DVector::from_vec(vec![0.4, -1.1, 0.7]);
         for k in [0, 1, 3, 8] {
             for ridge in [0.1, 10.0] {
-                let whole = fit_model(&f, &zr, k, ridge);
-                let want = &whole.mean + &whole.modes * (&whole.coefficients * &probe);
+                let whole = Pca::new(&f, k);
+                let want = whole.predict(&whole.coefficients(&zm, k, ridge), &probe);
                 let got = pca.predict(&pca.coefficients(&zm, k, ridge), &probe);
                 assert!((want - got).amax() < 1e-9, "k {k}, ridge {ridge}");
             }
