@@ -65,6 +65,9 @@ pub struct SkinSummary {
     pub centre_weight: f64,
     /// The shape prior used (`null`: none, the template's shape where nothing reaches).
     pub shape_prior: Option<String>,
+    /// Whether the fingers' sections were scaled to their calipers
+    /// ([`SkinOptions::section_scaling`]).
+    pub section_scaling: bool,
     pub iterations: usize,
     pub converged: bool,
     /// The template's posture found before the fit, degrees per joint `[flexion, abduction,
@@ -317,6 +320,7 @@ fn skin_summary(skin: &SkinFit, opts: &SkinOptions) -> SkinSummary {
         template_posed: skin.posture.is_some(),
         centre_weight: opts.centre_weight,
         shape_prior: skin.shape_prior.clone(),
+        section_scaling: opts.section_scaling,
         iterations: skin.iterations,
         converged: skin.converged,
         posture_deg: skin.posture.as_ref().map(|p| {

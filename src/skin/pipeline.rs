@@ -132,8 +132,9 @@ pub struct SkinOptions {
     pub shape_prior: PriorChoice,
     /// Scale each finger's fine skin across its bones by what a caliper on it still misses
     /// after the caliper rounds ([`super::section_scale`]); off (the default) leaves the
-    /// rounds' skin. Opt-in while one posed mesh it gives keeps an inverted element (README,
-    /// "Finger sections scaled to their calipers").
+    /// rounds' skin, whose finger calipers stop at [`Self::finger_caliper_slack_mm`] or
+    /// further. Opt-in while posed meshes it gives keep an inverted element (README, "Finger
+    /// sections scaled to their calipers").
     pub section_scaling: bool,
     /// Relax the fitted skin where it folds ([`super::unfold::unfold_skin`]): the fit on the
     /// simplified template, carried to the fine one by per-face frames, turns faces over where

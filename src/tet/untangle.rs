@@ -18,7 +18,9 @@
 //! an element stays inverted (its own nodes are boxed in by the held boundary). One node at a
 //! time stalls where no position of a node is valid with its neighbours where they are (two
 //! nodes collapsed onto each other at a crease): what is left is then solved for all the nodes
-//! within one, two and three rings of it at once, by Gauss-Newton on the same cost.
+//! within one, two and three rings of it at once, by Gauss-Newton on the same cost, the
+//! boundary nodes among them given the boundary's current reach (a crease pressed flat holds a
+//! sliver whose way out is a boundary node one ring further).
 //!
 //! Nothing moves in a mesh without inverted elements, so a valid mesh is returned unchanged.
 
@@ -266,7 +268,13 @@ pub fn untangle(
                 }
                 let before = bad.len();
                 for group in touching_groups(tets, &star, &bad) {
-                    untangle_jointly(nodes, tets, &star, &group, &target, &reach, &start, rings);
+                    let region = Region {
+                        rings,
+                        boundary_reach,
+                    };
+                    untangle_jointly(
+                        nodes, tets, &star, &group, &target, &mut reach, &start, region,
+                    );
                 }
                 bad = inverted(nodes);
                 stats.sweeps += 1;
@@ -349,11 +357,22 @@ fn touching_groups(tets: &[[usize; 4]], star: &[Vec<usize>], bad: &[usize]) -> V
     groups
 }
 
-/// The problem of the module documentation for all free nodes within `rings` rings of the
+/// The neighbourhood [`untangle_jointly`] moves: the nodes within `rings` rings of the
+/// elements it untangles, a boundary node among them by at least `boundary_reach`.
+#[derive(Clone, Copy, Debug)]
+struct Region {
+    rings: usize,
+    boundary_reach: f64,
+}
+
+/// The problem of the module documentation for all free nodes of the `region` around the
 /// elements `bad` at once (the volume is linear in each corner, so the residuals' Jacobian is
 /// the corners' volume gradients), by Gauss-Newton steps with a halving line search on the true
-/// cost, each node kept within its reach of `start`. The region is left as it was unless it ends
-/// with fewer inverted elements, or as many and a larger smallest volume.
+/// cost, each node kept within its reach of `start`. The boundary nodes of the region get the
+/// region's reach, not only those next to what is inverted: a crease pressed flat holds a
+/// sliver between boundary faces one ring out that must give way with it. The region is left
+/// as it was unless it ends with fewer inverted elements, or as many and a larger smallest
+/// volume; then its nodes keep the reach they were given.
 #[allow(clippy::too_many_arguments)]
 fn untangle_jointly(
     nodes: &mut [Point],
@@ -361,9 +380,12 @@ fn untangle_jointly(
     star: &[Vec<usize>],
     bad: &[usize],
     target: &[f64],
-    reach: &[f64],
+    reach: &mut [f64],
     start: &[Point],
-    rings: usize,
+    Region {
+        rings,
+        boundary_reach,
+    }: Region,
 ) {
     let n = nodes.len();
     let mut in_region = vec![false; n];
@@ -383,10 +405,13 @@ fn untangle_jointly(
         }
         frontier = next;
     }
-    let free: Vec<usize> = (0..n).filter(|&v| in_region[v] && reach[v] > 0.0).collect();
+    let free: Vec<usize> = (0..n)
+        .filter(|&v| in_region[v] && reach[v].max(boundary_reach) > 0.0)
+        .collect();
     if free.is_empty() || free.len() > JOINT_MAX_NODES {
         return;
     }
+    let free_reach: Vec<f64> = free.iter().map(|&v| reach[v].max(boundary_reach)).collect();
     let mut column = vec![usize::MAX; n];
     for (k, &v) in free.iter().enumerate() {
         column[v] = k;
@@ -467,7 +492,7 @@ fn untangle_jointly(
             for (k, &v) in free.iter().enumerate() {
                 let y =
                     here[k].coords + Vec3::new(step[3 * k], step[3 * k + 1], step[3 * k + 2]) * s;
-                nodes[v] = Point::from(within_reach(y, start[v].coords, reach[v]));
+                nodes[v] = Point::from(within_reach(y, start[v].coords, free_reach[k]));
             }
             if cost(nodes) < f {
                 moved = true;
@@ -482,7 +507,11 @@ fn untangle_jointly(
             break;
         }
     }
-    if !better(score(nodes), entry) {
+    if better(score(nodes), entry) {
+        for (&v, &r) in free.iter().zip(&free_reach) {
+            reach[v] = r;
+        }
+    } else {
         for (k, &v) in free.iter().enumerate() {
             nodes[v] = x0[k];
         }
@@ -671,12 +700,11 @@ mod tests {
         ]
     }
 
-    /// A held octahedron around two free nodes on its axis (a fan of four elements from each to
-    /// its cap, four joining them to the equator), the two nodes swapped, so that the four
-    /// joining elements are inverted: moved together, the two come back in order, every element
-    /// positive, the held nodes where they were.
-    #[test]
-    fn two_swapped_nodes_are_untangled_together() {
+    /// An octahedron around two nodes on its axis (a fan of four elements from each to its cap,
+    /// four joining them to the equator), the two nodes swapped, so that the four joining
+    /// elements are inverted: the nodes, the elements, their targets (a tenth of their volumes
+    /// in order) and the inverted ones.
+    fn swapped_pair() -> (Vec<Point>, Vec<[usize; 4]>, Vec<f64>, Vec<usize>) {
         let mut nodes = octahedron();
         nodes.extend([Point::new(0.0, 0.0, 0.3), Point::new(0.0, 0.0, -0.3)]);
         let equator = [[0, 2], [2, 1], [1, 3], [3, 0]];
@@ -691,19 +719,35 @@ mod tests {
                 t.swap(2, 3);
             }
         }
-        let reference: Vec<f64> = tets.iter().map(|t| signed_volume(&nodes, t)).collect();
-        assert!(reference.iter().all(|v| *v > 0.0));
-        let held = nodes[..6].to_vec();
+        let target: Vec<f64> = tets
+            .iter()
+            .map(|t| 0.1 * signed_volume(&nodes, t))
+            .collect();
+        assert!(target.iter().all(|v| *v > 0.0));
         nodes.swap(6, 7);
         let bad: Vec<usize> = (0..tets.len())
             .filter(|&t| signed_volume(&nodes, &tets[t]) <= 0.0)
             .collect();
         assert_eq!(bad.len(), 4, "the four joining elements");
+        (nodes, tets, target, bad)
+    }
+
+    /// The [`swapped_pair`] in a held octahedron, the pair free: moved together, the two come
+    /// back in order, every element positive, the held nodes where they were.
+    #[test]
+    fn two_swapped_nodes_are_untangled_together() {
+        let (mut nodes, tets, target, bad) = swapped_pair();
+        let held = nodes[..6].to_vec();
         let star = node_stars(nodes.len(), &tets);
-        let target: Vec<f64> = reference.iter().map(|v| 0.1 * v).collect();
-        let reach = [0.0, 0.0, 0.0, 0.0, 0.0, 0.0, f64::INFINITY, f64::INFINITY];
+        let mut reach = [0.0, 0.0, 0.0, 0.0, 0.0, 0.0, f64::INFINITY, f64::INFINITY];
         let start = nodes.clone();
-        untangle_jointly(&mut nodes, &tets, &star, &bad, &target, &reach, &start, 1);
+        let region = Region {
+            rings: 1,
+            boundary_reach: 0.0,
+        };
+        untangle_jointly(
+            &mut nodes, &tets, &star, &bad, &target, &mut reach, &start, region,
+        );
         for (t, tet) in tets.iter().enumerate() {
             assert!(
                 signed_volume(&nodes, tet) > 0.0,
@@ -711,6 +755,50 @@ mod tests {
             );
         }
         assert_eq!(nodes[..6], held[..]);
+        assert!(nodes[6].z > nodes[7].z, "{} {}", nodes[6], nodes[7]);
+    }
+
+    /// The [`swapped_pair`] with every node held on the boundary: with no reach the joint solve
+    /// can move nothing and the region stays inverted; given a region's reach of 1 mm, boundary
+    /// nodes the inverted elements do not name included, it clears every element, no node
+    /// further than that from where it started, and the nodes keep the reach they used.
+    #[test]
+    fn a_held_pair_gives_way_by_the_region_s_reach() {
+        let (mut nodes, tets, target, bad) = swapped_pair();
+        let start = nodes.clone();
+        let star = node_stars(nodes.len(), &tets);
+        let mut reach = [0.0; 8];
+        let held = Region {
+            rings: 1,
+            boundary_reach: 0.0,
+        };
+        untangle_jointly(
+            &mut nodes, &tets, &star, &bad, &target, &mut reach, &start, held,
+        );
+        assert_eq!(nodes, start);
+        let given = Region {
+            rings: 1,
+            boundary_reach: 1.0,
+        };
+        untangle_jointly(
+            &mut nodes, &tets, &star, &bad, &target, &mut reach, &start, given,
+        );
+        for (t, tet) in tets.iter().enumerate() {
+            assert!(
+                signed_volume(&nodes, tet) > 0.0,
+                "element {t} still inverted"
+            );
+        }
+        for (v, (p, q)) in nodes.iter().zip(&start).enumerate() {
+            assert!(
+                (p - q).norm() <= 1.0 + 1e-12,
+                "node {v} moved {}",
+                (p - q).norm()
+            );
+            if p != q {
+                assert_eq!(reach[v], 1.0, "node {v}");
+            }
+        }
         assert!(nodes[6].z > nodes[7].z, "{} {}", nodes[6], nodes[7]);
     }
 
