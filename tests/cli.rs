@@ -632,8 +632,7 @@ fn reconstruct_and_validate_a_simulated_subject() {
         dims["not_measured"].as_object().unwrap().is_empty(),
         "{dims}"
     );
-    let report: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap();
+    let report = read_report(&out);
     let own = report["skin"]["caliper_residuals_mm"].as_object().unwrap();
     assert_eq!(own.len(), 22, "{own:?}");
     let slack = ergohand::skin::pipeline::FINGER_CALIPER_SLACK_MM;
@@ -946,6 +945,11 @@ fn view_page_holds_the_grasp(out: &Path, r: &serde_json::Value) {
     for a in [d, ra, di] {
         assert!((dot(a, a) - 1.0).abs() < 1e-9);
     }
+}
+
+/// The `report.json` of the model folder `model`, parsed.
+fn read_report(model: &Path) -> serde_json::Value {
+    serde_json::from_str(&std::fs::read_to_string(model.join("report.json")).unwrap()).unwrap()
 }
 
 /// A `view.html` page's data and its embedded GLBs, decoded by the `base64` crate (an
@@ -1507,10 +1511,8 @@ fn the_template_cannot_reach_the_procedural_body() {
         "-q",
     ]);
     assert!(r.status.success(), "{}", stderr(&r));
-    let finger_worst = |model: &Path| -> f64 {
-        let report: serde_json::Value =
-            serde_json::from_str(&std::fs::read_to_string(model.join("report.json")).unwrap())
-                .unwrap();
+    let (scaled_report, plain_report) = (read_report(&scaled_model), read_report(&model));
+    let finger_worst = |report: &serde_json::Value| -> f64 {
         let own = report["skin"]["caliper_residuals_mm"].as_object().unwrap();
         assert_eq!(own.len(), 22, "{own:?}");
         own.iter()
@@ -1518,15 +1520,17 @@ fn the_template_cannot_reach_the_procedural_body() {
             .map(|(_, r)| r.as_f64().unwrap().abs())
             .fold(0.0, f64::max)
     };
-    let (scaled, plain) = (finger_worst(&scaled_model), finger_worst(&model));
+    let (scaled, plain) = (finger_worst(&scaled_report), finger_worst(&plain_report));
     eprintln!("finger calipers, worst miss: {plain:.2} mm unscaled, {scaled:.2} scaled");
     assert!(scaled <= 0.3 && scaled < plain, "{scaled} vs {plain}");
-    let scaling = |model: &Path| -> serde_json::Value {
-        let text = std::fs::read_to_string(model.join("report.json")).unwrap();
-        serde_json::from_str::<serde_json::Value>(&text).unwrap()["skin"]["section_scaling"].clone()
-    };
-    assert_eq!(scaling(&scaled_model), serde_json::json!(true));
-    assert_eq!(scaling(&model), serde_json::json!(false));
+    assert_eq!(
+        scaled_report["skin"]["section_scaling"],
+        serde_json::json!(true)
+    );
+    assert_eq!(
+        plain_report["skin"]["section_scaling"],
+        serde_json::json!(false)
+    );
     let scaled_poses = tmp.path().join("scaled-poses");
     std::fs::create_dir_all(&scaled_poses).unwrap();
     every_builtin_pose_keeps_its_elements_positive(&scaled_model, &scaled_poses);
@@ -1932,8 +1936,7 @@ fn the_library_reconstruction_is_what_the_command_writes() {
         .map(|(a, b)| (a - b).norm())
         .fold(0.0, f64::max);
     assert!(worst < 1e-5, "skin.obj differs by {worst} mm");
-    let mut report: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap();
+    let mut report = read_report(&out);
     let mut own = serde_json::to_value(&r.report).unwrap();
     for v in [&mut report, &mut own] {
         v.as_object_mut().unwrap().remove("timings_s");
@@ -2099,8 +2102,7 @@ fn a_template_folder_is_used_end_to_end() {
         skin.faces, given.mesh.faces,
         "homologous to the folder's template"
     );
-    let report: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap();
+    let report = read_report(&out);
     assert!(
         report["skin"]["shape_prior"].is_null(),
         "{}",

@@ -267,11 +267,11 @@ pub fn untangle(
                     break;
                 }
                 let before = bad.len();
+                let region = Region {
+                    rings,
+                    boundary_reach,
+                };
                 for group in touching_groups(tets, &star, &bad) {
-                    let region = Region {
-                        rings,
-                        boundary_reach,
-                    };
                     untangle_jointly(
                         nodes, tets, &star, &group, &target, &mut reach, &start, region,
                     );
@@ -405,13 +405,14 @@ fn untangle_jointly(
         }
         frontier = next;
     }
-    let free: Vec<usize> = (0..n)
-        .filter(|&v| in_region[v] && reach[v].max(boundary_reach) > 0.0)
-        .collect();
+    let (free, free_reach): (Vec<usize>, Vec<f64>) = (0..n)
+        .filter(|&v| in_region[v])
+        .map(|v| (v, reach[v].max(boundary_reach)))
+        .filter(|&(_, r)| r > 0.0)
+        .unzip();
     if free.is_empty() || free.len() > JOINT_MAX_NODES {
         return;
     }
-    let free_reach: Vec<f64> = free.iter().map(|&v| reach[v].max(boundary_reach)).collect();
     let mut column = vec![usize::MAX; n];
     for (k, &v) in free.iter().enumerate() {
         column[v] = k;
