@@ -733,28 +733,45 @@ mod tests {
         (nodes, tets, target, bad)
     }
 
+    /// [`untangle_jointly`] on the nodes within one ring of `bad`, the region's boundary nodes
+    /// given `boundary_reach`.
+    fn untangle_one_ring(
+        nodes: &mut [Point],
+        tets: &[[usize; 4]],
+        bad: &[usize],
+        target: &[f64],
+        reach: &mut [f64],
+        start: &[Point],
+        boundary_reach: f64,
+    ) {
+        let star = node_stars(nodes.len(), tets);
+        let region = Region {
+            rings: 1,
+            boundary_reach,
+        };
+        untangle_jointly(nodes, tets, &star, bad, target, reach, start, region);
+    }
+
+    /// Every element of `tets` has a positive volume.
+    fn assert_all_positive(nodes: &[Point], tets: &[[usize; 4]]) {
+        for (t, tet) in tets.iter().enumerate() {
+            assert!(
+                signed_volume(nodes, tet) > 0.0,
+                "element {t} still inverted"
+            );
+        }
+    }
+
     /// The [`swapped_pair`] in a held octahedron, the pair free: moved together, the two come
     /// back in order, every element positive, the held nodes where they were.
     #[test]
     fn two_swapped_nodes_are_untangled_together() {
         let (mut nodes, tets, target, bad) = swapped_pair();
         let held = nodes[..6].to_vec();
-        let star = node_stars(nodes.len(), &tets);
         let mut reach = [0.0, 0.0, 0.0, 0.0, 0.0, 0.0, f64::INFINITY, f64::INFINITY];
         let start = nodes.clone();
-        let region = Region {
-            rings: 1,
-            boundary_reach: 0.0,
-        };
-        untangle_jointly(
-            &mut nodes, &tets, &star, &bad, &target, &mut reach, &start, region,
-        );
-        for (t, tet) in tets.iter().enumerate() {
-            assert!(
-                signed_volume(&nodes, tet) > 0.0,
-                "element {t} still inverted"
-            );
-        }
+        untangle_one_ring(&mut nodes, &tets, &bad, &target, &mut reach, &start, 0.0);
+        assert_all_positive(&nodes, &tets);
         assert_eq!(nodes[..6], held[..]);
         assert!(nodes[6].z > nodes[7].z, "{} {}", nodes[6], nodes[7]);
     }
@@ -767,29 +784,11 @@ mod tests {
     fn a_held_pair_gives_way_by_the_region_s_reach() {
         let (mut nodes, tets, target, bad) = swapped_pair();
         let start = nodes.clone();
-        let star = node_stars(nodes.len(), &tets);
         let mut reach = [0.0; 8];
-        let held = Region {
-            rings: 1,
-            boundary_reach: 0.0,
-        };
-        untangle_jointly(
-            &mut nodes, &tets, &star, &bad, &target, &mut reach, &start, held,
-        );
+        untangle_one_ring(&mut nodes, &tets, &bad, &target, &mut reach, &start, 0.0);
         assert_eq!(nodes, start);
-        let given = Region {
-            rings: 1,
-            boundary_reach: 1.0,
-        };
-        untangle_jointly(
-            &mut nodes, &tets, &star, &bad, &target, &mut reach, &start, given,
-        );
-        for (t, tet) in tets.iter().enumerate() {
-            assert!(
-                signed_volume(&nodes, tet) > 0.0,
-                "element {t} still inverted"
-            );
-        }
+        untangle_one_ring(&mut nodes, &tets, &bad, &target, &mut reach, &start, 1.0);
+        assert_all_positive(&nodes, &tets);
         for (v, (p, q)) in nodes.iter().zip(&start).enumerate() {
             assert!(
                 (p - q).norm() <= 1.0 + 1e-12,
