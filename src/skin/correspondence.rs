@@ -16,7 +16,10 @@
 //! still have a least-squares answer. They are nonlinear and are linearised at the current
 //! iterate, then the linear problem is re-solved until the vertices stop moving:
 //! - landmark: the normal `n_k` is frozen, giving `v_k = q_k − s_k n_k`: a diagonal penalty
-//!   with a changing right-hand side;
+//!   with a changing right-hand side. With [`FitParams::hold_folded_normals`], a normal turned
+//!   more than 90° from the input mesh's at that vertex is taken for a fold of the iterate, not
+//!   the skin's direction, and the input's is used instead: followed, a folded normal puts the
+//!   vertex on the far side of its marker, which keeps the fold, and the iterates lock into it;
 //! - distance: first-order Taylor expansion `‖d‖ ≈ u·d` with `u = d/‖d‖` frozen, giving the
 //!   penalty `(u·(v_a − v_b) − d_n)²`. Unlike freezing the whole vector `d = d_n u`
 //!   (a local-global step), this leaves the pair free to rotate, so a stiff penalty does not
@@ -123,6 +126,10 @@ pub struct FitParams {
     pub max_iterations: usize,
     /// Converged when no vertex moves more than this between two solves, mm.
     pub tolerance_mm: f64,
+    /// A landmark's normal turned more than 90° from the input mesh's is replaced by the
+    /// input's (module documentation). Off by default: on a fit that does not fold it moves
+    /// the iterates' path, and the skin with it, either way.
+    pub hold_folded_normals: bool,
 }
 
 impl Default for FitParams {
@@ -137,6 +144,7 @@ impl Default for FitParams {
             w_distance: 1e8,
             max_iterations: 100,
             tolerance_mm: 1e-3,
+            hold_folded_normals: false,
         }
     }
 }
@@ -148,7 +156,8 @@ pub struct FitResult {
     pub mesh: TriMesh,
     /// Linearised solves performed.
     pub iterations: usize,
-    /// `‖v_k + s n_k − q_k‖` per landmark constraint on the result, mm (normals of `mesh`).
+    /// `‖v_k + s n_k − q_k‖` per landmark constraint on the result, mm (normals of `mesh`, as
+    /// the fit took them).
     pub landmark_residuals_mm: Vec<f64>,
     /// `‖v_a − v_b‖ − d_n` per distance constraint on the result, mm (positive: too long).
     pub distance_residuals_mm: Vec<f64>,
@@ -156,6 +165,11 @@ pub struct FitResult {
     pub point_residuals_mm: Vec<f64>,
     /// Whether the last solve moved no vertex more than `tolerance_mm`.
     pub converged: bool,
+    /// Landmarks whose vertex passed through its marker: the vertex normal on the result
+    /// points against the input mesh's there, and the marker lies behind the vertex along the
+    /// input's normal. A marker is never inside the skin: the signature of a fit locked in a
+    /// fold (module documentation).
+    pub crossed_landmarks: usize,
 }
 
 /// Sumner & Popović (2004) correspondence energy with the constraints of the seed paper's eq. 2.
@@ -264,9 +278,22 @@ pub fn fit_landmarks_with_points(
     let mut iterations = 0;
     let mut converged = false;
     let mut rhs = Mat::<f64>::zeros(n, 3);
+    let start_normals = vertex_normals(&verts, &template.faces);
+    let landmark_normals = |verts: &[Point]| -> Vec<Vec3> {
+        let mut normals = vertex_normals(verts, &template.faces);
+        if params.hold_folded_normals {
+            for lm in landmarks {
+                let n0 = start_normals[lm.vertex];
+                if normals[lm.vertex].dot(&n0) < 0.0 {
+                    normals[lm.vertex] = n0;
+                }
+            }
+        }
+        normals
+    };
     while iterations < params.max_iterations {
         iterations += 1;
-        let normals = vertex_normals(&verts, &template.faces);
+        let normals = landmark_normals(&verts);
         for (i, r) in rhs_const.iter().enumerate() {
             for x in 0..3 {
                 rhs[(i, x)] = r[x];
@@ -325,7 +352,15 @@ pub fn fit_landmarks_with_points(
         }
     }
 
-    let normals = vertex_normals(&verts, &template.faces);
+    let raw_normals = vertex_normals(&verts, &template.faces);
+    let crossed_landmarks = landmarks
+        .iter()
+        .filter(|lm| {
+            let n0 = start_normals[lm.vertex];
+            raw_normals[lm.vertex].dot(&n0) < 0.0 && (lm.target - verts[lm.vertex]).dot(&n0) < 0.0
+        })
+        .count();
+    let normals = landmark_normals(&verts);
     let landmark_residuals_mm = landmarks
         .iter()
         .map(|lm| (verts[lm.vertex] + lm.offset_mm * normals[lm.vertex] - lm.target).norm())
@@ -356,6 +391,7 @@ pub fn fit_landmarks_with_points(
         distance_residuals_mm,
         point_residuals_mm,
         converged,
+        crossed_landmarks,
     })
 }
 
