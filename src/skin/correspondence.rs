@@ -279,8 +279,7 @@ pub fn fit_landmarks_with_points(
     let mut converged = false;
     let mut rhs = Mat::<f64>::zeros(n, 3);
     let start_normals = vertex_normals(&verts, &template.faces);
-    let landmark_normals = |verts: &[Point]| -> Vec<Vec3> {
-        let mut normals = vertex_normals(verts, &template.faces);
+    let held = |mut normals: Vec<Vec3>| -> Vec<Vec3> {
         if params.hold_folded_normals {
             for lm in landmarks {
                 let n0 = start_normals[lm.vertex];
@@ -293,7 +292,7 @@ pub fn fit_landmarks_with_points(
     };
     while iterations < params.max_iterations {
         iterations += 1;
-        let normals = landmark_normals(&verts);
+        let normals = held(vertex_normals(&verts, &template.faces));
         for (i, r) in rhs_const.iter().enumerate() {
             for x in 0..3 {
                 rhs[(i, x)] = r[x];
@@ -352,15 +351,15 @@ pub fn fit_landmarks_with_points(
         }
     }
 
-    let raw_normals = vertex_normals(&verts, &template.faces);
+    let normals = vertex_normals(&verts, &template.faces);
     let crossed_landmarks = landmarks
         .iter()
         .filter(|lm| {
             let n0 = start_normals[lm.vertex];
-            raw_normals[lm.vertex].dot(&n0) < 0.0 && (lm.target - verts[lm.vertex]).dot(&n0) < 0.0
+            normals[lm.vertex].dot(&n0) < 0.0 && (lm.target - verts[lm.vertex]).dot(&n0) < 0.0
         })
         .count();
-    let normals = landmark_normals(&verts);
+    let normals = held(normals);
     let landmark_residuals_mm = landmarks
         .iter()
         .map(|lm| (verts[lm.vertex] + lm.offset_mm * normals[lm.vertex] - lm.target).norm())
