@@ -7,8 +7,12 @@
 //! closing parameter `t ∈ [0, 1]`. Fingers close independently in steps of `t`; a step that
 //! pushes a link deeper than `max_depth_mm` into the part is halved until it is shorter than
 //! `min_step`; a link that touches (within the contact tolerance) stops its own joint and every
-//! joint proximal to it in the digit, while the joints distal to it keep closing. Joints that
-//! reach their closed posture with their link never touching are reported.
+//! joint proximal to it in the digit, while the joints distal to it keep closing. A wrapping
+//! plan ([`GraspPlan::wrap`], the power grasp) moves one joint of a digit at a time, proximal
+//! first, each until its step would press a phalanx into the part (a touch within the tolerance
+//! does not stop it): the proximal phalanx meets the part, then the middle one, then the
+//! distal one, as fingers wrap a handle. Joints that reach their closed posture with their
+//! link never touching are reported.
 
 use super::collide::{has_core, Cores};
 use super::contact::{ContactOptions, PartShape};
@@ -282,8 +286,11 @@ pub fn autograsp(
                 }
                 // Cannot get closer without passing through: the chain up to k stops here.
                 // When k is already still, the skin it dominates is pushed by the blend of the
-                // distal joints still moving: the next of them stops too.
-                let last = if moving[..=k].iter().any(|&m| m) {
+                // distal joints still moving: the next of them stops too. A wrapping digit
+                // moved its lead joint alone: that joint stops, and the next one leads.
+                let last = if plan.wrap {
+                    lead
+                } else if moving[..=k].iter().any(|&m| m) {
                     k
                 } else {
                     (k + 1..3).find(|&m| moving[m]).unwrap_or(2)
@@ -304,10 +311,16 @@ pub fn autograsp(
             t = t2;
             for k in 0..3 {
                 depth[k] = st[k].depth;
+                // A wrapping digit's lead joint closes on past the first touch until its step
+                // would press a phalanx in: when the proximal phalanx meets the part, the skin
+                // of the middle one beside the joint is within the tolerance too, and stopping
+                // there left the fingers straight with hooked tips.
                 if st[k].touches {
                     touched[dl[k].index()] = true;
-                    for m in moving.iter_mut().take(k + 1) {
-                        *m = false;
+                    if !plan.wrap {
+                        for m in moving.iter_mut().take(k + 1) {
+                            *m = false;
+                        }
                     }
                 }
             }
@@ -339,7 +352,8 @@ pub fn autograsp(
 /// preshape moves from `root` along the palmar axis of its [`grasp_frame`] by at most
 /// [`GraspPlan::approach_mm`], in steps of 2 mm halved down to 1/16 mm before any step that
 /// would take a link deeper into the part than `max_depth_mm` (or deeper than it was at
-/// `root`), and stops as soon as the palm touches. Without it the palm stays where the approach
+/// `root`, or than the plan lets it give way, [`GraspPlan::give_mm`]), and stops as soon as
+/// the palm touches. Without it the palm stays where the approach
 /// put it and a power grasp wraps the fingers round the part with the palm off it: the
 /// thenar and the fingers then push the part away from the palm and nothing opposes them.
 /// Returns the new root and the distance travelled, mm.
@@ -373,7 +387,8 @@ pub fn approach_to_contact(
         if st
             .iter()
             .zip(&start)
-            .any(|(a, b)| a.depth > opts.max_depth_mm.max(b.depth + 1e-6))
+            .enumerate()
+            .any(|(l, (a, b))| a.depth > opts.max_depth_mm.max(b.depth + 1e-6).max(plan.give(l)))
         {
             step *= 0.5;
             continue;
@@ -791,12 +806,13 @@ mod tests {
         h.pose_vertices(&g.pose, &mut pts);
         let c = contacts(part, &pts, &h.links, &vertex_areas(&h.mesh), &opts.contact);
         // The palm is placed by the approach, not closed: allow half a millimetre beyond the
-        // closing bound.
-        assert!(
-            c.max_depth_mm() <= opts.max_depth_mm + 0.5,
-            "{}",
-            c.max_depth_mm()
-        );
+        // closing bound, and beyond the plan's give where the approach presses soft tissue in.
+        let plan = grasp_plan(GraspType::Power);
+        for l in Link::ALL {
+            let bound = opts.max_depth_mm.max(plan.give(l.index())) + 0.5;
+            let d = c.link_depth_mm[l.index()];
+            assert!(d <= bound, "{}: {d} mm deep", l.name());
+        }
         // Every finger's distal link wraps onto the bottle, and touched joints are not reported.
         let touching: Vec<&str> = Link::ALL
             .iter()
@@ -808,6 +824,48 @@ mod tests {
             let l = Joint::from_name(j).unwrap().child_link();
             assert!(!c.touches(l.index()), "{j} reported untouched but touches");
         }
+    }
+
+    /// The power approach brings the palm onto the bottle by pressing the thenar in, within
+    /// the plan's give; a plan whose thenar does not give way is stopped by it with the palm
+    /// still off the bottle.
+    #[test]
+    fn the_thenar_gives_way_so_that_the_palm_meets_the_part() {
+        let h = hand();
+        let part = bottle();
+        let opts = AutograspOptions::default();
+        // The power grasp of scenes/bottle.toml.
+        let approach = crate::grasp::scene::pose_from([-35.0, -42.0, 90.0], [-90.0, -90.0, 0.0]);
+        let root = root_for(h, &Isometry3::identity(), &approach);
+        let at = |plan: &GraspPlan| {
+            let (r, s) = approach_to_contact(h, part, plan, root, &opts);
+            let tr = link_transforms(h.skeleton(), &pose_at(plan, &[0.0; 16], r));
+            let mut buf = Vec::new();
+            let mut depth = |l: Link| {
+                h.pose_link(l.index(), &tr, &mut buf);
+                buf.iter()
+                    .map(|p| match part.probe(p, 20.0) {
+                        crate::grasp::contact::Probe::Hit(d, _, _) => -d,
+                        crate::grasp::contact::Probe::Deep => 20.0,
+                        crate::grasp::contact::Probe::Far => -20.0,
+                    })
+                    .fold(f64::MIN, f64::max)
+            };
+            (s, depth(Link::Palm), depth(Link::TMeta))
+        };
+        let plan = grasp_plan(GraspType::Power);
+        assert_eq!(plan.give(Link::TMeta.index()), THENAR_GIVE_MM);
+        let (travel, palm, thenar) = at(&plan);
+        assert!(palm >= -opts.contact.tolerance_mm, "palm {palm} mm deep");
+        assert!(thenar <= THENAR_GIVE_MM + 1e-9, "{thenar}");
+        let stiff = GraspPlan {
+            give_mm: Vec::new(),
+            ..plan
+        };
+        let (short, palm_off, thenar_stiff) = at(&stiff);
+        assert!(palm_off < -opts.contact.tolerance_mm, "{palm_off}");
+        assert!(thenar_stiff <= opts.max_depth_mm + 1e-9, "{thenar_stiff}");
+        assert!(short < travel, "{short} {travel}");
     }
 
     #[test]

@@ -334,6 +334,48 @@ impl ContactSet {
     pub fn touches(&self, link: usize) -> bool {
         self.link_area_mm2[link] > 0.0
     }
+
+    /// How the contacts envelop the part ([`Envelope`]).
+    pub fn envelope(&self) -> Envelope {
+        let fingers_wrapped: Vec<String> = Finger::ALL[1..]
+            .iter()
+            .filter(|f| f.links().iter().all(|l| self.touches(l.index())))
+            .map(|f| format!("{f:?}").to_lowercase())
+            .collect();
+        let palm = self.touches(Link::Palm.index());
+        Envelope {
+            palm,
+            wraps: palm && fingers_wrapped.len() >= WRAP_FINGERS,
+            fingers_wrapped,
+        }
+    }
+}
+
+/// Fingers that must wrap the part with all three phalanges, with the palm touching, for a
+/// grasp to count as a wrap ([`Envelope::wraps`]).
+pub const WRAP_FINGERS: usize = 3;
+
+/// How a grasp envelops the part: a power grasp holds it against the palm with the phalanges
+/// of the closing fingers wrapped round it (Cutkosky 1989, "power grasps"; Kamakura et al.
+/// 1980, the standard power grip: the palm and the palmar surfaces of all phalanges); a grasp
+/// that holds by the fingertips with the palm off the part holds differently, and loads the
+/// hand differently, from the grasp a person makes.
+#[derive(Clone, Debug, Default, PartialEq, Eq, Serialize, serde::Deserialize)]
+pub struct Envelope {
+    /// The palm touches the part.
+    pub palm: bool,
+    /// The fingers (index to little) whose proximal, middle and distal phalanges all touch.
+    pub fingers_wrapped: Vec<String>,
+    /// The palm and at least [`WRAP_FINGERS`] fingers wrapped.
+    pub wraps: bool,
+}
+
+impl Envelope {
+    /// A count that ranks power grasps by how far they envelop the part: the palm touching
+    /// and each wrapped finger, up to [`WRAP_FINGERS`] (beyond a wrap, quality decides).
+    pub fn score(&self) -> usize {
+        usize::from(self.palm) + self.fingers_wrapped.len().min(WRAP_FINGERS)
+    }
 }
 
 /// Per-vertex skin area: a third of each incident face's area.
@@ -559,5 +601,44 @@ mod tests {
                 .any(|s| s.contains("part.units") && s.contains("0.2")),
             "{w:?}"
         );
+    }
+
+    /// A wrap is the palm and three fingers with every phalanx; a finger missing one phalanx
+    /// is not wrapped, and without the palm nothing wraps; the score counts the palm and up to
+    /// three wrapped fingers.
+    #[test]
+    fn a_wrap_is_the_palm_and_three_fingers_with_every_phalanx() {
+        let with = |links: &[Link]| {
+            let mut area = vec![0.0; Link::ALL.len()];
+            for l in links {
+                area[l.index()] = 10.0;
+            }
+            ContactSet {
+                vertex_distance: Vec::new(),
+                contacts: Vec::new(),
+                link_area_mm2: area,
+                link_depth_mm: vec![0.0; Link::ALL.len()],
+            }
+            .envelope()
+        };
+        let fingers = |fs: &[Finger]| -> Vec<Link> { fs.iter().flat_map(|f| f.links()).collect() };
+        let mut three = fingers(&[Finger::Index, Finger::Middle, Finger::Ring]);
+        let e = with(&three);
+        assert!(!e.palm && !e.wraps && e.fingers_wrapped.len() == 3, "{e:?}");
+        assert_eq!(e.score(), 3);
+        three.push(Link::Palm);
+        let e = with(&three);
+        assert!(e.wraps, "{e:?}");
+        assert_eq!(e.fingers_wrapped, ["index", "middle", "ring"]);
+        assert_eq!(e.score(), 4);
+        let mut all = fingers(&[Finger::Index, Finger::Middle, Finger::Ring, Finger::Little]);
+        all.push(Link::Palm);
+        assert_eq!(with(&all).score(), 4);
+        // The thumb's phalanges do not count as a wrapped finger.
+        let mut thumb = fingers(&[Finger::Thumb, Finger::Index, Finger::Middle]);
+        thumb.push(Link::Palm);
+        thumb.retain(|&l| l != Link::MMid);
+        let e = with(&thumb);
+        assert!(!e.wraps && e.fingers_wrapped == ["index"], "{e:?}");
     }
 }

@@ -20,9 +20,10 @@ pub struct GraspPlan {
     /// Joints that close.
     pub active: [bool; 16],
     /// Closing order within a digit: `true` wraps (only the most proximal joint still moving
-    /// advances, so the proximal phalanx meets the part first and the finger curls onto it,
-    /// as in a power grasp); `false` closes the digit's joints together (the fingertip leads,
-    /// as in precision grasps).
+    /// advances, until it presses its phalanx into the part, so the proximal phalanx meets the
+    /// part first and the finger curls onto it, as in a power grasp; see [`super::autograsp::autograsp`]);
+    /// `false` closes the digit's joints together (the fingertip leads, as in precision
+    /// grasps).
     pub wrap: bool,
     /// Longest wrist travel (mm) along the grasp frame's palmar axis before closing, stopping
     /// when the palm touches ([`approach_to_contact`]); 0: the fingers close from the approach.
@@ -37,7 +38,30 @@ pub struct GraspPlan {
     /// onto it (the lateral or key pinch: the thumb pad presses the part against the radial
     /// side of the flexed index's middle phalanx, Cutkosky 1989; Napier 1956).
     pub support: Option<Link>,
+    /// Links whose skin the approach to contact may press into the part by this much (mm):
+    /// soft tissue that gives way under the part, as the thenar eminence does when a handle is
+    /// pressed into the palm ([`approach_to_contact`]).
+    pub give_mm: Vec<(Link, f64)>,
 }
+
+impl GraspPlan {
+    /// How far the approach may press `link`'s skin into the part, mm ([`GraspPlan::give_mm`];
+    /// 0 for a link not named there).
+    pub fn give(&self, link: usize) -> f64 {
+        self.give_mm
+            .iter()
+            .find(|(l, _)| l.index() == link)
+            .map_or(0.0, |g| g.1)
+    }
+}
+
+/// How far a power grasp's approach may press the thenar eminence (the skin of the thumb's
+/// metacarpal) into the part, mm. The thenar stands 10-15 mm proud of the palm and stopped the
+/// approach with the palm still 3-4 mm off a 60 mm bottle on the template, up to 7 mm on
+/// reconstructed hands; its soft tissue is the thickest of the palm. Measured on eight dev hands
+/// and the demo's (see README "Grasps that wrap"): 2 mm, 3 mm and 4 mm gave way enough for the
+/// template's palm; 3 mm is used.
+pub const THENAR_GIVE_MM: f64 = 3.0;
 
 /// The plan of a grasp type (degrees chosen within the anatomical limits; the wrist stays put).
 pub fn grasp_plan(kind: GraspType) -> GraspPlan {
@@ -147,6 +171,11 @@ pub fn grasp_plan(kind: GraspType) -> GraspPlan {
                 .collect(),
         },
         support: (kind == GraspType::Lateral).then_some(Link::IMid),
+        give_mm: if kind == GraspType::Power {
+            vec![(Link::TMeta, THENAR_GIVE_MM)]
+        } else {
+            Vec::new()
+        },
     }
 }
 

@@ -1,9 +1,9 @@
 //! One scene over many hands: what a designer asks of a part ("what share of users can hold
 //! it, and how?"). Each hand's [`GraspReport`] is summarised ([`HandOutcome`]: holds, force
-//! closure, epsilon, contact area per digit, the joints that end at an anatomical limit, the
-//! hand's size from its link model, and why it failed), and the hands together
-//! ([`PopulationSummary`]: the share that holds, overall and per size third, and the count of
-//! each failure). `ergohand grasp SCENE.toml --models DIR... --out DIR` writes it as
+//! closure, epsilon, contact area per digit, how it envelops the part, the joints that end at
+//! an anatomical limit, the hand's size from its link model, and why it failed), and the hands
+//! together ([`PopulationSummary`]: the share that holds, overall and per size third, the
+//! count of each failure, and how many wrap the part). `ergohand grasp SCENE.toml --models DIR... --out DIR` writes it as
 //! `population.json`, with a page made by [`crate::validate::population_report`].
 
 use super::hand::PosableHand;
@@ -64,6 +64,9 @@ pub struct HandOutcome {
     pub contact_area_mm2: f64,
     /// Contact area per digit and the palm, mm².
     pub contact_area_by_finger_mm2: BTreeMap<String, f64>,
+    /// How the grasp envelops the part (the palm, the fingers wrapped with every phalanx).
+    #[serde(default)]
+    pub envelope: super::contact::Envelope,
     /// Joints ending within [`AT_LIMIT_DEG`] of an anatomical limit, as `JOINT dof at LIMIT°`.
     pub at_limit: Vec<String>,
     /// How far the hand moved along its palm from the scene's given approach, mm, toward the
@@ -129,6 +132,7 @@ pub fn hand_outcome(
         worst_displacement_mm: f64::NAN,
         contact_area_mm2: 0.0,
         contact_area_by_finger_mm2: BTreeMap::new(),
+        envelope: Default::default(),
         at_limit: Vec::new(),
         approach_slide_mm: None,
         failure: Some(Failure::NoGrasp),
@@ -150,6 +154,7 @@ pub fn hand_outcome(
                 .fold(0.0, f64::max);
             o.contact_area_mm2 = r.total_contact_area_mm2;
             o.contact_area_by_finger_mm2 = r.contact_area_by_finger_mm2.clone();
+            o.envelope = r.envelope.clone();
             o.at_limit = joints_at_limit(&r.pose_deg);
             o.failure = if r.holds {
                 None
@@ -196,6 +201,10 @@ pub struct PopulationSummary {
     pub failures: BTreeMap<String, usize>,
     /// Hands that end with some joint at its limit.
     pub at_limit: usize,
+    /// Hands whose grasp wraps the part: the palm and at least three fingers with every
+    /// phalanx touching ([`super::contact::Envelope::wraps`]).
+    #[serde(default)]
+    pub wrapping: usize,
     /// Per hand, in the order given.
     pub outcomes: Vec<HandOutcome>,
 }
@@ -246,6 +255,7 @@ pub fn summarise(scene: &str, grasp_type: &str, outcomes: Vec<HandOutcome>) -> P
         by_size,
         failures,
         at_limit: outcomes.iter().filter(|o| !o.at_limit.is_empty()).count(),
+        wrapping: outcomes.iter().filter(|o| o.envelope.wraps).count(),
         outcomes,
     }
 }
@@ -296,6 +306,7 @@ mod tests {
             worst_displacement_mm: 0.1,
             contact_area_mm2: 300.0,
             contact_area_by_finger_mm2: BTreeMap::new(),
+            envelope: Default::default(),
             at_limit: Vec::new(),
             approach_slide_mm: None,
             failure,
@@ -305,12 +316,17 @@ mod tests {
     }
 
     /// Seven hands: the thirds by length take 2, 2 and 3 hands by rank (whatever the order
-    /// given), each counting its own holders; failures are counted by reason.
+    /// given), each counting its own holders; failures are counted by reason, and the hands
+    /// that wrap the part.
     #[test]
     fn thirds_by_length_and_failures_by_reason() {
+        let wrapped = |mut o: HandOutcome| {
+            o.envelope.wraps = true;
+            o
+        };
         let hands = vec![
-            outcome("g", 205.0, None),
-            outcome("a", 160.0, Some(Failure::Slips)),
+            wrapped(outcome("g", 205.0, None)),
+            wrapped(outcome("a", 160.0, Some(Failure::Slips))),
             outcome("e", 190.0, None),
             outcome("b", 170.0, Some(Failure::NoGrasp)),
             outcome("f", 200.0, Some(Failure::Slips)),
@@ -319,6 +335,7 @@ mod tests {
         ];
         let s = summarise("pen.toml", "tripod", hands);
         assert_eq!((s.hands, s.holding, s.force_closure), (7, 3, 5));
+        assert_eq!(s.wrapping, 2);
         let g: Vec<(&str, usize, usize, [f64; 2])> = s
             .by_size
             .iter()

@@ -76,6 +76,7 @@ pub fn hand_table(s: &PopulationSummary) -> Table {
     if slid {
         head.push("moved along the palm (mm)".into());
     }
+    head.push("wrapped (palm, fingers)".into());
     head.push("at a limit".into());
     head.push("why not held".into());
     let mut numeric = vec![false, true, true, false, false, true, true, true];
@@ -83,7 +84,7 @@ pub fn hand_table(s: &PopulationSummary) -> Table {
     if slid {
         numeric.push(true);
     }
-    numeric.extend([false, false]);
+    numeric.extend([false, false, false]);
     let mut t = Table {
         head,
         rows: Vec::new(),
@@ -118,6 +119,7 @@ pub fn hand_table(s: &PopulationSummary) -> Table {
                 None => "-".into(),
             }));
         }
+        row.push(Cell::new(envelope_words(&o.envelope)));
         row.push(Cell::new(o.at_limit.join(", ")));
         let why = match (&o.failure, &o.error) {
             (_, Some(e)) => e.clone(),
@@ -128,6 +130,21 @@ pub fn hand_table(s: &PopulationSummary) -> Table {
         t.rows.push(row);
     }
     t
+}
+
+/// A grasp's envelope in a table cell: whether it wraps, whether the palm touches, and the
+/// fingers wrapped with every phalanx.
+fn envelope_words(e: &crate::grasp::contact::Envelope) -> String {
+    format!(
+        "{}; palm {}; {}",
+        if e.wraps { "wraps" } else { "no" },
+        if e.palm { "on" } else { "off" },
+        if e.fingers_wrapped.is_empty() {
+            "no finger".to_string()
+        } else {
+            e.fingers_wrapped.join(" ")
+        }
+    )
 }
 
 /// Epsilon against hand length, one dot per hand (filled: holds; open: does not), as SVG.
@@ -203,11 +220,12 @@ fn lead(s: &PopulationSummary) -> String {
         .map(|(why, n)| format!("{n} {why}"))
         .collect();
     format!(
-        "{} of {} hands hold the part ({}); {} are in force closure; {} end with a joint at its limit.{}",
+        "{} of {} hands hold the part ({}); {} are in force closure; {} wrap it with the palm and three fingers; {} end with a joint at its limit.{}",
         s.holding,
         s.hands,
         s.grasp_type,
         s.force_closure,
+        s.wrapping,
         s.at_limit,
         if failures.is_empty() {
             String::new()
@@ -297,6 +315,7 @@ mod tests {
             worst_displacement_mm: if holds { 0.1 } else { 2.3 },
             contact_area_mm2: 300.0,
             contact_area_by_finger_mm2: [("thumb".to_string(), 120.0)].into_iter().collect(),
+            envelope: Default::default(),
             at_limit: vec!["T_IP flexion at -20°".into()],
             approach_slide_mm: None,
             failure: (!holds).then_some(Failure::Slips),
