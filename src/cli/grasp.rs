@@ -187,12 +187,13 @@ fn view_page(o: &GraspOutcome, glb: Vec<u8>) -> ViewPage {
 pub fn grasp(scene: &Path, model: Option<&Path>, out: &Path) -> Result<GraspReport> {
     let r = grasp_job(scene, model, out)?;
     log::info!(
-        "grasp: force closure {}, epsilon {:.4}, volume {:.3e}, holds {}, contact {:.0} mm²; wrote {}",
+        "grasp: force closure {}, epsilon {:.4}, volume {:.3e}, holds {}, contact {:.0} mm², {}; wrote {}",
         r.force_closure,
         r.epsilon,
         r.volume,
         r.holds,
         r.total_contact_area_mm2,
+        r.envelope.describe(),
         out.display()
     );
     Ok(r)

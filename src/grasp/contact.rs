@@ -371,6 +371,21 @@ pub struct Envelope {
 }
 
 impl Envelope {
+    /// In words, for tables and summaries: `wraps (palm on; wrapped: index middle ring)` or
+    /// `no wrap (palm off; wrapped: no finger)`.
+    pub fn describe(&self) -> String {
+        format!(
+            "{} (palm {}; wrapped: {})",
+            if self.wraps { "wraps" } else { "no wrap" },
+            if self.palm { "on" } else { "off" },
+            if self.fingers_wrapped.is_empty() {
+                "no finger".to_string()
+            } else {
+                self.fingers_wrapped.join(" ")
+            }
+        )
+    }
+
     /// A count that ranks power grasps by how far they envelop the part: the palm touching
     /// and each wrapped finger, up to [`WRAP_FINGERS`] (beyond a wrap, quality decides).
     pub fn score(&self) -> usize {
@@ -629,6 +644,7 @@ mod tests {
         three.push(Link::Palm);
         let e = with(&three);
         assert!(e.wraps, "{e:?}");
+        assert_eq!(e.describe(), "wraps (palm on; wrapped: index middle ring)");
         assert_eq!(e.fingers_wrapped, ["index", "middle", "ring"]);
         assert_eq!(e.score(), 4);
         let mut all = fingers(&[Finger::Index, Finger::Middle, Finger::Ring, Finger::Little]);

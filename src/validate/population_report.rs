@@ -76,7 +76,7 @@ pub fn hand_table(s: &PopulationSummary) -> Table {
     if slid {
         head.push("moved along the palm (mm)".into());
     }
-    head.push("wrapped (palm, fingers)".into());
+    head.push("wrap".into());
     head.push("at a limit".into());
     head.push("why not held".into());
     let mut numeric = vec![false, true, true, false, false, true, true, true];
@@ -119,7 +119,7 @@ pub fn hand_table(s: &PopulationSummary) -> Table {
                 None => "-".into(),
             }));
         }
-        row.push(Cell::new(envelope_words(&o.envelope)));
+        row.push(Cell::new(o.envelope.describe()));
         row.push(Cell::new(o.at_limit.join(", ")));
         let why = match (&o.failure, &o.error) {
             (_, Some(e)) => e.clone(),
@@ -130,21 +130,6 @@ pub fn hand_table(s: &PopulationSummary) -> Table {
         t.rows.push(row);
     }
     t
-}
-
-/// A grasp's envelope in a table cell: whether it wraps, whether the palm touches, and the
-/// fingers wrapped with every phalanx.
-fn envelope_words(e: &crate::grasp::contact::Envelope) -> String {
-    format!(
-        "{}; palm {}; {}",
-        if e.wraps { "wraps" } else { "no" },
-        if e.palm { "on" } else { "off" },
-        if e.fingers_wrapped.is_empty() {
-            "no finger".to_string()
-        } else {
-            e.fingers_wrapped.join(" ")
-        }
-    )
 }
 
 /// Epsilon against hand length, one dot per hand (filled: holds; open: does not), as SVG.
