@@ -385,12 +385,6 @@ impl Envelope {
             }
         )
     }
-
-    /// A count that ranks power grasps by how far they envelop the part: the palm touching
-    /// and each wrapped finger, up to [`WRAP_FINGERS`] (beyond a wrap, quality decides).
-    pub fn score(&self) -> usize {
-        usize::from(self.palm) + self.fingers_wrapped.len().min(WRAP_FINGERS)
-    }
 }
 
 /// Per-vertex skin area: a third of each incident face's area.
@@ -619,8 +613,7 @@ mod tests {
     }
 
     /// A wrap is the palm and three fingers with every phalanx; a finger missing one phalanx
-    /// is not wrapped, and without the palm nothing wraps; the score counts the palm and up to
-    /// three wrapped fingers.
+    /// is not wrapped, and without the palm nothing wraps.
     #[test]
     fn a_wrap_is_the_palm_and_three_fingers_with_every_phalanx() {
         let with = |links: &[Link]| {
@@ -640,16 +633,11 @@ mod tests {
         let mut three = fingers(&[Finger::Index, Finger::Middle, Finger::Ring]);
         let e = with(&three);
         assert!(!e.palm && !e.wraps && e.fingers_wrapped.len() == 3, "{e:?}");
-        assert_eq!(e.score(), 3);
         three.push(Link::Palm);
         let e = with(&three);
         assert!(e.wraps, "{e:?}");
         assert_eq!(e.describe(), "wraps (palm on; wrapped: index middle ring)");
         assert_eq!(e.fingers_wrapped, ["index", "middle", "ring"]);
-        assert_eq!(e.score(), 4);
-        let mut all = fingers(&[Finger::Index, Finger::Middle, Finger::Ring, Finger::Little]);
-        all.push(Link::Palm);
-        assert_eq!(with(&all).score(), 4);
         // The thumb's phalanges do not count as a wrapped finger.
         let mut thumb = fingers(&[Finger::Thumb, Finger::Index, Finger::Middle]);
         thumb.push(Link::Palm);

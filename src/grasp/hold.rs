@@ -617,7 +617,7 @@ mod tests {
         let deepest = sq
             .depth_mm
             .iter()
-            .filter(|(l, _)| l.as_str() != "T_META")
+            .filter(|(l, _)| l.as_str() != Link::TMeta.name())
             .map(|(_, &d)| d)
             .fold(0.0, f64::max);
         assert!(

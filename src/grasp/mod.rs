@@ -718,7 +718,7 @@ mod tests {
         // thenar no deeper than the approach let it give way.
         assert!(r.approach_to_contact_mm > 0.0);
         for c in &r.contacts {
-            let bound = if c.link == "T_META" {
+            let bound = if c.link == crate::anatomy::Link::TMeta.name() {
                 plan::THENAR_GIVE_MM
             } else {
                 autograsp::SQUEEZE_MM

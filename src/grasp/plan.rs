@@ -21,9 +21,9 @@ pub struct GraspPlan {
     pub active: [bool; 16],
     /// Closing order within a digit: `true` wraps (only the most proximal joint still moving
     /// advances, until it presses its phalanx into the part, so the proximal phalanx meets the
-    /// part first and the finger curls onto it, as in a power grasp; see [`super::autograsp::autograsp`]);
-    /// `false` closes the digit's joints together (the fingertip leads, as in precision
-    /// grasps).
+    /// part first and the finger curls onto it, as in a power grasp; see
+    /// [`super::autograsp::autograsp`]); `false` closes the digit's joints together (the
+    /// fingertip leads, as in precision grasps).
     pub wrap: bool,
     /// Longest wrist travel (mm) along the grasp frame's palmar axis before closing, stopping
     /// when the palm touches ([`approach_to_contact`]); 0: the fingers close from the approach.
@@ -56,11 +56,10 @@ impl GraspPlan {
 }
 
 /// How far a power grasp's approach may press the thenar eminence (the skin of the thumb's
-/// metacarpal) into the part, mm. The thenar stands 10-15 mm proud of the palm and stopped the
-/// approach with the palm still 3-4 mm off a 60 mm bottle on the template, up to 7 mm on
-/// reconstructed hands; its soft tissue is the thickest of the palm. Measured on eight dev hands
-/// and the demo's (see README "Grasps that wrap"): 2 mm, 3 mm and 4 mm gave way enough for the
-/// template's palm; 3 mm is used.
+/// metacarpal) into the part, mm. The thenar stands proud of the palm and, rigid, stopped the
+/// approach with the palm still off a bottle's side; its soft tissue is the thickest of the
+/// palm's and gives way under a handle. Of 2, 3 and 4 mm on the template's bottle grasp, the
+/// least that lets its palm meet the bottle (README, "Grasps that wrap").
 pub const THENAR_GIVE_MM: f64 = 3.0;
 
 /// The plan of a grasp type (degrees chosen within the anatomical limits; the wrist stays put).
