@@ -314,7 +314,7 @@ impl ContactSet {
                 .map(|l| self.link_area_mm2[l.index()])
                 .sum();
             rest -= a;
-            out.insert(format!("{f:?}").to_lowercase(), a);
+            out.insert(f.trial_name().to_string(), a);
         }
         out.insert("palm".into(), rest.max(0.0));
         out
@@ -340,7 +340,7 @@ impl ContactSet {
         let fingers_wrapped: Vec<String> = Finger::ALL[1..]
             .iter()
             .filter(|f| f.links().iter().all(|l| self.touches(l.index())))
-            .map(|f| format!("{f:?}").to_lowercase())
+            .map(|f| f.trial_name().to_string())
             .collect();
         let palm = self.touches(Link::Palm.index());
         Envelope {
