@@ -176,7 +176,8 @@ impl Status {
 /// Key figures of a subject's `report.json` (absent figures are `None`).
 #[derive(Clone, Debug, Default, PartialEq, Serialize)]
 pub struct KeyFigures {
-    /// Largest landmark residual of the skin fit, mm.
+    /// Largest landmark residual of the skin fit (a marker's distance to the written skin
+    /// minus its offset, absolute), mm.
     pub landmark_residual_max_mm: Option<f64>,
     /// Largest |caliper pair residual| of the skin fit (its template vertex pairs), mm.
     pub caliper_pair_residual_max_mm: Option<f64>,
