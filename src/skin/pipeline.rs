@@ -683,7 +683,16 @@ pub fn fit_skin(
                 Some((d.name.clone(), m - dimensions[&dim]))
             })
             .collect();
-        (errors, section)
+        // The given dimensions a caliper cannot read on this skin, with the reason.
+        let unread: BTreeMap<String, String> = distances
+            .iter()
+            .filter_map(|d| {
+                let dim = Dimension::from_name(&d.name)?;
+                let why = measured.get(&dim)?.as_ref().err()?;
+                Some((d.name.clone(), why.clone()))
+            })
+            .collect();
+        (errors, section, unread)
     };
     // What a round corrects of a dimension's miss: all of it on the palm, the part beyond the
     // slack on a finger.
@@ -699,7 +708,7 @@ pub fn fit_skin(
         let s: f64 = e.iter().map(|(n, x)| excess(n, *x).powi(2)).sum();
         (s / e.len().max(1) as f64).sqrt()
     };
-    let (mut caliper_residuals_mm, mut section) = caliper_error(&high, false);
+    let (mut caliper_residuals_mm, mut section, mut unread) = caliper_error(&high, false);
     let mut targets = distances.clone();
     let mut best_targets = targets.clone();
     let mut caliper_rounds = 0;
@@ -718,7 +727,7 @@ pub fn fit_skin(
             }
         }
         let (f, l, h, u) = fit_once(&targets)?;
-        let (e, round_section) = caliper_error(&h, false);
+        let (e, round_section, round_unread) = caliper_error(&h, false);
         // A dimension whose miss grew and changed sign was overshot (its pair moves the
         // section's extreme by more than itself): its step is halved from then on.
         for (d, g) in targets.iter().zip(&mut gains) {
@@ -736,6 +745,7 @@ pub fn fit_skin(
         if measures_as_many && score(&current) < score(&caliper_residuals_mm) {
             (fit, low, high, unfolded_faces) = (f, l, h, u);
             section = round_section;
+            unread = round_unread;
             caliper_residuals_mm = current.clone();
             best_targets = targets.clone();
             caliper_rounds = round;
@@ -745,7 +755,7 @@ pub fn fit_skin(
     // The kept skin's hinge depths, and what its calipers read with them.
     let depth = full_link_model.is_some();
     if depth {
-        (caliper_residuals_mm, section) = caliper_error(&high, true);
+        (caliper_residuals_mm, section, unread) = caliper_error(&high, true);
     }
     // The fingers' sections scaled on the fine skin to what the rounds left, measured again
     // after each pass: a scale moves the section's centre and with it the joint the next
@@ -763,7 +773,7 @@ pub fn fit_skin(
             for (v, &k) in low.vertices.iter_mut().zip(&simplified.kept) {
                 *v += d[k];
             }
-            (caliper_residuals_mm, section) = caliper_error(&high, depth);
+            (caliper_residuals_mm, section, unread) = caliper_error(&high, depth);
         }
     }
     let (inverted_faces, degenerate_faces) = face_check(&guard, &high);
@@ -810,6 +820,9 @@ pub fn fit_skin(
         &caliper_residuals_mm,
         &dimension_residuals_mm,
     ));
+    if let Some(w) = unread_calipers_warning(&unread, distances.len()) {
+        warnings.push(w);
+    }
     if inverted_faces > 0 || degenerate_faces > 0 {
         warnings.push(format!(
             "skin: {inverted_faces} inverted and {degenerate_faces} degenerate faces in the \
@@ -845,6 +858,33 @@ pub fn fit_skin(
         iterations: fit.iterations,
         warnings,
     })
+}
+
+/// The warning for the given dimensions a caliper cannot read on the fitted skin (`unread`:
+/// dimension name -> why, of `given` dimensions the fit constrains), naming them grouped by
+/// reason; `None` when every one was read. The caliper rounds correct only what they read, so
+/// such a dimension is neither met nor checked.
+fn unread_calipers_warning(unread: &BTreeMap<String, String>, given: usize) -> Option<String> {
+    if unread.is_empty() {
+        return None;
+    }
+    let mut by_reason: BTreeMap<&str, Vec<&str>> = BTreeMap::new();
+    for (name, why) in unread {
+        by_reason
+            .entry(why.as_str())
+            .or_default()
+            .push(name.as_str());
+    }
+    let groups: Vec<String> = by_reason
+        .iter()
+        .map(|(why, names)| format!("{} ({why})", names.join(", ")))
+        .collect();
+    Some(format!(
+        "skin: {} of the {given} given calipers cannot be read on the fitted skin, so the caliper \
+         rounds neither met nor checked them: {}",
+        unread.len(),
+        groups.join("; ")
+    ))
 }
 
 /// Per marker of `markers`: its signed distance to the surface of `skin` (positive outside,
@@ -1306,6 +1346,45 @@ mod tests {
         assert!(worst(&rounds) * 5.0 < worst(&paper));
         assert!(mean(&rounds.high) < mean(&paper.high));
         assert_eq!(rounds.high.faces, t.mesh.faces);
+    }
+
+    /// A caliper the skin cannot be read with is named, with the measurement's own reason: on
+    /// the template, with the middle finger's DIP centre moved 40 mm dorsal of its finger, no
+    /// section at that joint encloses it, and the warning names both of its calipers and
+    /// nothing else; with every caliper read there is no warning.
+    #[test]
+    fn calipers_the_skin_cannot_be_read_with_are_named() {
+        let t = load_template(crate::anatomy::Side::Right).unwrap();
+        let landmarks: BTreeMap<String, Point> = t
+            .spec
+            .landmarks
+            .iter()
+            .map(|(n, &v)| (n.clone(), t.mesh.vertices[v]))
+            .collect();
+        let unread_of = |sk: &Skeleton| -> BTreeMap<String, String> {
+            measure_dimensions(&t.mesh, sk, &landmarks)
+                .into_iter()
+                .filter_map(|(d, m)| m.err().map(|why| (d.name(), why)))
+                .collect()
+        };
+        assert!(unread_of(&t.skeleton).is_empty());
+        assert_eq!(unread_calipers_warning(&unread_of(&t.skeleton), 22), None);
+        let mut moved = t.skeleton.clone();
+        let dorsal = moved.joint(Joint::MDip).y().normalize();
+        moved.joints[Joint::MDip.index()].centre += dorsal * 40.0;
+        let unread = unread_of(&moved);
+        let names: Vec<&str> = unread.keys().map(|n| n.as_str()).collect();
+        assert_eq!(
+            names,
+            ["finger3_breadth_distal", "finger3_thickness_distal"]
+        );
+        let w = unread_calipers_warning(&unread, 22).expect("a warning");
+        assert!(w.contains("2 of the 22 given calipers"), "{w}");
+        assert!(
+            w.contains("finger3_breadth_distal, finger3_thickness_distal ("),
+            "{w}"
+        );
+        assert!(w.contains(&unread["finger3_breadth_distal"]), "{w}");
     }
 
     /// A marker's standoff is its signed distance to the skin minus the offset: zero for a
