@@ -610,21 +610,13 @@ mod tests {
         assert!((t2_read - 2.0 * b2).abs() < 0.01, "{t2_read}");
     }
 
-    fn template_landmarks(t: &crate::template::TemplateHand) -> BTreeMap<String, Point> {
-        t.spec
-            .landmarks
-            .iter()
-            .map(|(k, &v)| (k.clone(), t.mesh.vertices[v]))
-            .collect()
-    }
-
     /// On both templates every dimension is measured and plausible, and a rigid motion of skin,
     /// skeleton and landmarks together leaves every reading unchanged.
     #[test]
     fn template_dimensions_are_plausible_and_invariant_to_rigid_motion() {
         for side in [crate::anatomy::Side::Right, crate::anatomy::Side::Left] {
             let t = load_template(side).unwrap();
-            let lm = template_landmarks(&t);
+            let lm = t.landmark_points();
             let dims = measure_dimensions(&t.mesh, &t.skeleton, &lm);
             assert_eq!(dims.len(), 22);
             for (d, m) in &dims {

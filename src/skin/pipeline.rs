@@ -1355,12 +1355,7 @@ mod tests {
     #[test]
     fn calipers_the_skin_cannot_be_read_with_are_named() {
         let t = load_template(crate::anatomy::Side::Right).unwrap();
-        let landmarks: BTreeMap<String, Point> = t
-            .spec
-            .landmarks
-            .iter()
-            .map(|(n, &v)| (n.clone(), t.mesh.vertices[v]))
-            .collect();
+        let landmarks = t.landmark_points();
         let unread_of = |sk: &Skeleton| -> BTreeMap<String, String> {
             measure_dimensions(&t.mesh, sk, &landmarks)
                 .into_iter()

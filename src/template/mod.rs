@@ -45,6 +45,18 @@ pub struct TemplateHand {
     pub source: TemplateSource,
 }
 
+impl TemplateHand {
+    /// Every landmark of the spec at its vertex of `mesh`, by name: the template read as if
+    /// each landmark were the skin point under its marker.
+    pub fn landmark_points(&self) -> std::collections::BTreeMap<String, crate::geometry::Point> {
+        self.spec
+            .landmarks
+            .iter()
+            .map(|(name, &v)| (name.clone(), self.mesh.vertices[v]))
+            .collect()
+    }
+}
+
 /// The link that dominates each vertex's weights.
 pub fn dominant_links(weights: &LinkWeights) -> Vec<usize> {
     weights

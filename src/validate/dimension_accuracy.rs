@@ -112,12 +112,7 @@ mod tests {
     #[test]
     fn template_measures_itself_and_scaling_shows() {
         let t = load_template(Side::Right).unwrap();
-        let lm: BTreeMap<String, Point> = t
-            .spec
-            .landmarks
-            .iter()
-            .map(|(k, &v)| (k.clone(), t.mesh.vertices[v]))
-            .collect();
+        let lm = t.landmark_points();
         let given: BTreeMap<Dimension, f64> = measure_dimensions(&t.mesh, &t.skeleton, &lm)
             .into_iter()
             .map(|(d, m)| (d, m.unwrap()))
