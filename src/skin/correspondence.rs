@@ -19,7 +19,12 @@
 //!   with a changing right-hand side. With [`FitParams::hold_folded_normals`], a normal turned
 //!   more than 90° from the input mesh's at that vertex is taken for a fold of the iterate, not
 //!   the skin's direction, and the input's is used instead: followed, a folded normal puts the
-//!   vertex on the far side of its marker, which keeps the fold, and the iterates lock into it;
+//!   vertex on the far side of its marker, which keeps the fold, and the iterates lock into it.
+//!   With [`FitParams::hold_cycling_normals`], a landmark whose normal keeps turning between
+//!   solves is held at the mean of its last three: on the simplified mesh a pulled vertex
+//!   kinks its ring, its normal swings by tens of degrees from one solve to the next (a
+//!   two- or three-cycle), and the fit never settles; held, its term is linear and the rest
+//!   settles around it (the README's "cycling landmark normals");
 //! - distance: first-order Taylor expansion `‖d‖ ≈ u·d` with `u = d/‖d‖` frozen, giving the
 //!   penalty `(u·(v_a − v_b) − d_n)²`. Unlike freezing the whole vector `d = d_n u`
 //!   (a local-global step), this leaves the pair free to rotate, so a stiff penalty does not
@@ -130,7 +135,20 @@ pub struct FitParams {
     /// input's (module documentation). Off by default: on a fit that does not fold it moves
     /// the iterates' path, and the skin with it, either way.
     pub hold_folded_normals: bool,
+    /// A landmark whose normal turned more than [`CYCLE_TURN_DEG`] between two solves
+    /// [`CYCLE_TURNS`] times (from the third solve on) is held at the mean of its last three
+    /// normals for the rest of the fit (module documentation). A fit whose normals settle is
+    /// left exactly as without it.
+    pub hold_cycling_normals: bool,
 }
+
+/// A landmark normal's turn between two solves that counts toward [`CYCLE_TURNS`], degrees. A
+/// settling fit turns its normals by a few degrees in its first solves and by hundredths after.
+pub const CYCLE_TURN_DEG: f64 = 20.0;
+
+/// Turns beyond [`CYCLE_TURN_DEG`] after which a landmark's normal is held
+/// ([`FitParams::hold_cycling_normals`]).
+pub const CYCLE_TURNS: usize = 2;
 
 impl Default for FitParams {
     /// The paper's weights (section 4), stiff constraint penalties (calipers stiffer than
@@ -145,6 +163,7 @@ impl Default for FitParams {
             max_iterations: 100,
             tolerance_mm: 1e-3,
             hold_folded_normals: false,
+            hold_cycling_normals: true,
         }
     }
 }
@@ -170,6 +189,9 @@ pub struct FitResult {
     /// input's normal. A marker is never inside the skin: the signature of a fit locked in a
     /// fold (module documentation).
     pub crossed_landmarks: usize,
+    /// Landmarks whose normal was held because it kept turning between solves
+    /// ([`FitParams::hold_cycling_normals`]).
+    pub cycling_landmarks: usize,
 }
 
 /// Sumner & Popović (2004) correspondence energy with the constraints of the seed paper's eq. 2.
@@ -290,9 +312,37 @@ pub fn fit_landmarks_with_points(
         }
         normals
     };
+    // Per landmark: its normals so far, its large turns, and the normal it is held at.
+    let mut history: Vec<Vec<Vec3>> = vec![Vec::new(); landmarks.len()];
+    let mut turns = vec![0usize; landmarks.len()];
+    let mut cycling: Vec<Option<Vec3>> = vec![None; landmarks.len()];
     while iterations < params.max_iterations {
         iterations += 1;
-        let normals = held(vertex_normals(&verts, &template.faces));
+        let mut normals = held(vertex_normals(&verts, &template.faces));
+        if params.hold_cycling_normals {
+            for (k, lm) in landmarks.iter().enumerate() {
+                if let Some(h) = cycling[k] {
+                    normals[lm.vertex] = h;
+                    continue;
+                }
+                let n = normals[lm.vertex];
+                if let Some(last) = history[k].last() {
+                    let turn = n.dot(last).clamp(-1.0, 1.0).acos().to_degrees();
+                    // The first solves move the whole template onto the markers; a cycle
+                    // shows after them.
+                    if iterations > 2 && turn > CYCLE_TURN_DEG {
+                        turns[k] += 1;
+                    }
+                }
+                history[k].push(n);
+                if turns[k] >= CYCLE_TURNS {
+                    let tail = &history[k][history[k].len().saturating_sub(3)..];
+                    let h = tail.iter().sum::<Vec3>().try_normalize(1e-9).unwrap_or(n);
+                    cycling[k] = Some(h);
+                    normals[lm.vertex] = h;
+                }
+            }
+        }
         for (i, r) in rhs_const.iter().enumerate() {
             for x in 0..3 {
                 rhs[(i, x)] = r[x];
@@ -359,7 +409,12 @@ pub fn fit_landmarks_with_points(
             normals[lm.vertex].dot(&n0) < 0.0 && (lm.target - verts[lm.vertex]).dot(&n0) < 0.0
         })
         .count();
-    let normals = held(normals);
+    let mut normals = held(normals);
+    for (lm, h) in landmarks.iter().zip(&cycling) {
+        if let Some(h) = h {
+            normals[lm.vertex] = *h;
+        }
+    }
     let landmark_residuals_mm = landmarks
         .iter()
         .map(|lm| (verts[lm.vertex] + lm.offset_mm * normals[lm.vertex] - lm.target).norm())
@@ -391,6 +446,7 @@ pub fn fit_landmarks_with_points(
         point_residuals_mm,
         converged,
         crossed_landmarks,
+        cycling_landmarks: cycling.iter().filter(|h| h.is_some()).count(),
     })
 }
 
@@ -1017,6 +1073,61 @@ mod tests {
         // Same input, same bits.
         let again = fit_landmarks(&m, &lms, &ds, &FitParams::default()).unwrap();
         assert_eq!(again.mesh, r.mesh);
+    }
+
+    /// An icosahedron whose landmarks stand 15 mm off it (beyond its 10 mm radius), one of
+    /// them pulled 6 mm sideways: the pulled vertex kinks its ring, its normal swings from one
+    /// solve to the next and the fit never settles, leaving markers 2-3 mm off their offsets
+    /// from the surface. With the cycling normal held, the fit settles and every marker is at
+    /// its offset from the fitted surface (read on the surface, not the fit's own term). A fit
+    /// that settles anyway is the same bits either way.
+    #[test]
+    fn a_landmark_normal_that_cycles_is_held_and_the_fit_settles() {
+        let m = crate::geometry::mesh::tests::icosphere(10.0, 0);
+        let n = m.vertex_normals();
+        let (s, side) = (15.0, 6.0);
+        let lms: Vec<LandmarkConstraint> = (0..m.n_vertices())
+            .step_by(2)
+            .map(|k| {
+                let t = n[k].cross(&Vec3::new(0.3, 0.5, 0.8)).normalize();
+                let pull = if k == 0 { side } else { 0.0 };
+                LandmarkConstraint {
+                    vertex: k,
+                    target: m.vertices[k] + s * n[k] + pull * t,
+                    offset_mm: s,
+                }
+            })
+            .collect();
+        let standoff_miss = |r: &FitResult| -> f64 {
+            let tree = crate::geometry::closest_point::AabbTree::new(&r.mesh);
+            lms.iter()
+                .map(|l| (tree.distance(&l.target).unwrap() - l.offset_mm).abs())
+                .fold(0.0, f64::max)
+        };
+        let free = FitParams {
+            hold_cycling_normals: false,
+            ..FitParams::default()
+        };
+        let cycling = fit_landmarks(&m, &lms, &[], &free).unwrap();
+        assert!(!cycling.converged);
+        assert_eq!(cycling.cycling_landmarks, 0);
+        assert!(standoff_miss(&cycling) > 1.0, "{}", standoff_miss(&cycling));
+        let held = fit_landmarks(&m, &lms, &[], &FitParams::default()).unwrap();
+        assert!(held.converged, "{} iterations", held.iterations);
+        assert!(held.cycling_landmarks >= 1);
+        assert!(standoff_miss(&held) < 0.01, "{}", standoff_miss(&held));
+
+        let hand = base_hand();
+        let idx = spread(&hand, 20);
+        let goal = affine(&hand, &shear_scale(), Vec3::new(3.0, -2.0, 5.0));
+        let (lms, ds) = (
+            landmarks_on(&goal, &idx, 4.0),
+            distances_on(&goal, &idx[..8]),
+        );
+        let on = fit_landmarks(&hand, &lms, &ds, &FitParams::default()).unwrap();
+        let off = fit_landmarks(&hand, &lms, &ds, &free).unwrap();
+        assert!(on.converged && on.cycling_landmarks == 0);
+        assert_eq!(on.mesh, off.mesh);
     }
 
     #[test]

@@ -539,6 +539,12 @@ pub fn fit_skin(
                     distances: &[DistanceConstraint]|
      -> Result<(FitResult, TriMesh, TriMesh, usize)> {
         let fit = fit_landmarks_with_points(fit_mesh, &landmarks, distances, &centres, params)?;
+        if fit.cycling_landmarks > 0 {
+            log::debug!(
+                "skin: {} landmark normals kept turning between solves and were held",
+                fit.cycling_landmarks
+            );
+        }
         let mut high = match &binding {
             Some(binding) => TriMesh {
                 vertices: transfer(binding, &fit.mesh)?,
@@ -579,11 +585,19 @@ pub fn fit_skin(
     // A fit that ends with a landmark's vertex passed through its marker
     // (`FitResult::crossed_landmarks`) is run again with the landmarks' folded normals held
     // (`FitParams::hold_folded_normals`), and the second kept if it turns fewer faces and
-    // leaves its worst landmark nearer: where a landmark must travel far (a thumb 15-20 mm from
-    // the posed template's), its normal can turn over on the way and the fit lock into the
-    // fold, the vertex on the far side of its marker. Only then: elsewhere holding moves the
-    // iterates' path either way (README, "The landmark fit's folded normals").
-    let worst = |f: &FitResult| f.landmark_residuals_mm.iter().copied().fold(0.0, f64::max);
+    // leaves its worst marker nearer its offset from that fit's skin: where a landmark must
+    // travel far (a thumb 15-20 mm from the posed template's), its normal can turn over on the
+    // way and the fit lock into the fold, the vertex on the far side of its marker. Only then:
+    // elsewhere holding moves the iterates' path either way (README, "The landmark fit's folded
+    // normals"). Compared on the skin, not by the fit's own terms, which a fit meets along
+    // whatever normals it held.
+    let markers_used: Vec<Point> = names.iter().map(|n| target(n)).collect();
+    let worst = |skin: &TriMesh| {
+        marker_standoffs(skin, &markers_used, marker_offset_mm)
+            .iter()
+            .map(|x| x.abs())
+            .fold(0.0, f64::max)
+    };
     let fit_once = |distances: &[DistanceConstraint]| {
         let first = fit_with(&params, distances)?;
         if first.0.crossed_landmarks == 0 || params.hold_folded_normals {
@@ -602,7 +616,7 @@ pub fn fit_skin(
             first.0.crossed_landmarks,
             second.0.crossed_landmarks
         );
-        let better = refolded < folded && worst(&second.0) < worst(&first.0);
+        let better = refolded < folded && worst(&second.2) < worst(&first.2);
         Ok(if better { second } else { first })
     };
     let (mut fit, mut low, mut high, mut unfolded_faces) = fit_once(&distances)?;
@@ -778,7 +792,6 @@ pub fn fit_skin(
     }
     let (inverted_faces, degenerate_faces) = face_check(&guard, &high);
 
-    let markers_used: Vec<Point> = names.iter().map(|n| target(n)).collect();
     let standoffs = marker_standoffs(&high, &markers_used, marker_offset_mm);
     log::debug!(
         "skin: the fit's own landmark terms (|v + s·n − q| on the simplified mesh) up to {:.2} mm, \
