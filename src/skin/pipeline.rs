@@ -689,23 +689,24 @@ pub fn fit_skin(
         )
         .unwrap_or_else(|_| section.1.clone());
         let measured = measure_dimensions(high, &centred, &landmarks);
-        let errors: BTreeMap<String, f64> = distances
-            .iter()
-            .filter_map(|d| {
-                let dim = Dimension::from_name(&d.name)?;
-                let m = measured.get(&dim)?.as_ref().ok()?;
-                Some((d.name.clone(), m - dimensions[&dim]))
-            })
-            .collect();
-        // The given dimensions a caliper cannot read on this skin, with the reason.
-        let unread: BTreeMap<String, String> = distances
-            .iter()
-            .filter_map(|d| {
-                let dim = Dimension::from_name(&d.name)?;
-                let why = measured.get(&dim)?.as_ref().err()?;
-                Some((d.name.clone(), why.clone()))
-            })
-            .collect();
+        // What each given dimension's caliper reads minus its value, and those a caliper
+        // cannot read on this skin, with the reason.
+        let mut errors: BTreeMap<String, f64> = BTreeMap::new();
+        let mut unread: BTreeMap<String, String> = BTreeMap::new();
+        for d in &distances {
+            let Some(dim) = Dimension::from_name(&d.name) else {
+                continue;
+            };
+            match measured.get(&dim) {
+                Some(Ok(m)) => {
+                    errors.insert(d.name.clone(), m - dimensions[&dim]);
+                }
+                Some(Err(why)) => {
+                    unread.insert(d.name.clone(), why.clone());
+                }
+                None => {}
+            }
+        }
         (errors, section, unread)
     };
     // What a round corrects of a dimension's miss: all of it on the palm, the part beyond the
