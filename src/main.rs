@@ -119,9 +119,9 @@ enum Command {
         /// the fit's displacement there (for comparison).
         #[arg(long)]
         no_unfold: bool,
-        /// After the caliper rounds, scale each finger's sections across its bones until a
-        /// caliper on the skin reads the given dimensions (finger calipers within about 0.3 mm
-        /// instead of the rounds' 1 mm slack).
+        /// After the caliper rounds, scale each finger's sections across its bones and the
+        /// wrist's across the forearm until a caliper on the skin reads the given dimensions
+        /// (within about 0.3 mm instead of the rounds' 1 mm slack on a finger).
         #[arg(long)]
         section_scaling: bool,
         /// Weight of the joint-centre terms of the skin fit; 0 leaves them out.

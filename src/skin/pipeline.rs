@@ -27,7 +27,7 @@ use super::correspondence::{
 use super::distal_frame::{distal_frames_at_tips, distal_frames_by_homology};
 use super::posture_fit::{fit_posture, PostureFit, PostureTargets, SkinnedMarker};
 use super::section_centre::{centre_on_cross_section, centre_ring, depth_offsets, depth_rings};
-use super::section_scale::{section_scales, section_scaling};
+use super::section_scale::{section_scales, section_scaling, wrist_scales, wrist_scaling};
 use super::shape_prior::{
     fold_free_displacement, subject_features, JointLine, ShapePrior, FEATURE_LIMIT_SD,
 };
@@ -64,9 +64,13 @@ pub const CENTRE_WEIGHT: f64 = 0.0;
 /// the gain and the finger slack on both simulated bodies (README, "Skin").
 pub const CALIPER_ROUNDS: usize = 6;
 
-/// Measure-and-scale passes of the fingers' sections after the caliper rounds
-/// ([`SkinOptions::section_scaling`]).
-pub(crate) const SECTION_SCALING_PASSES: usize = 3;
+/// Measure-and-scale passes of the fingers' and the wrist's sections after the caliper rounds
+/// at most ([`SkinOptions::section_scaling`]): each pass takes out a third to a half of what
+/// the calipers still miss where the skinning weights blend two bones across a section.
+pub(crate) const SECTION_SCALING_PASSES: usize = 6;
+
+/// The passes stop once every finger and wrist caliper reads within this of its given value, mm.
+pub(crate) const SECTION_SCALING_TOLERANCE_MM: f64 = 0.1;
 
 /// Default tolerance of the caliper rounds, mm (a caliper's resolution is 0.1 mm).
 pub(crate) const CALIPER_TOLERANCE_MM: f64 = 0.05;
@@ -131,10 +135,10 @@ pub struct SkinOptions {
     /// Shape prior for what no marker and no caliper reaches, added along the fitted skin's
     /// normals before the caliper rounds ([`super::shape_prior`]).
     pub shape_prior: PriorChoice,
-    /// Scale each finger's fine skin across its bones by what a caliper on it still misses
-    /// after the caliper rounds ([`super::section_scale`]); off (the default) leaves the
-    /// rounds' skin, whose finger calipers stop at [`Self::finger_caliper_slack_mm`] or
-    /// further. Opt-in while posed meshes it gives keep an inverted element (README, "Finger
+    /// Scale each finger's fine skin across its bones, and the wrist's across the forearm, by
+    /// what a caliper on it still misses after the caliper rounds ([`super::section_scale`]);
+    /// off (the default) leaves the rounds' skin, whose finger calipers stop at
+    /// [`Self::finger_caliper_slack_mm`] or further. Opt-in while posed meshes it gives keep an inverted element (README, "Finger
     /// sections scaled to their calipers").
     pub section_scaling: bool,
     /// Relax the fitted skin where it folds ([`super::unfold::unfold_skin`]): the fit on the
@@ -772,16 +776,31 @@ pub fn fit_skin(
     if depth {
         (caliper_residuals_mm, section, unread) = caliper_error(&high, true);
     }
-    // The fingers' sections scaled on the fine skin to what the rounds left, measured again
-    // after each pass: a scale moves the section's centre and with it the joint the next
-    // caliper is read at.
+    // The fingers' and the wrist's sections scaled on the fine skin to what the rounds left,
+    // measured again after each pass: a scale moves the section's centre and with it the joint
+    // the next caliper is read at.
     if opts.section_scaling {
         for _ in 0..SECTION_SCALING_PASSES {
-            let scales = section_scales(&caliper_residuals_mm, dimensions);
-            if scales.is_empty() {
+            let within = caliper_residuals_mm
+                .iter()
+                .filter(|(n, _)| n.starts_with("finger") || n.starts_with("wrist"))
+                .all(|(_, r)| r.abs() <= SECTION_SCALING_TOLERANCE_MM);
+            if within {
                 break;
             }
-            let d = section_scaling(&high, &section.1, &template.weights, &scales);
+            let scales = section_scales(&caliper_residuals_mm, dimensions);
+            let wrist = wrist_scales(&caliper_residuals_mm, dimensions);
+            if scales.is_empty() && wrist.is_none() {
+                break;
+            }
+            let mut d = section_scaling(&high, &section.1, &template.weights, &scales);
+            if let Some(s) = wrist {
+                let landmarks = landmarks_on_skin(&high, &markers);
+                let dw = wrist_scaling(&high, &section.1, &template.weights, &landmarks, s);
+                for (a, b) in d.iter_mut().zip(&dw) {
+                    *a += b;
+                }
+            }
             for (v, x) in high.vertices.iter_mut().zip(&d) {
                 *v += x;
             }
@@ -1455,12 +1474,14 @@ mod tests {
     }
 
     /// On a hand unlike the template the caliper rounds leave a finger up to their slack
-    /// thinner or thicker than its calipers; scaled across its bones, a caliper on the fingers
-    /// reads the given values, the true hand's own calipers (measured on the simulated hand at
-    /// its true joints, an independent reading) come nearer, and the surface stays as close to
-    /// the CT-like reference and homologous.
+    /// thinner or thicker than its calipers; scaled across its bones (and the wrist across the
+    /// forearm), a caliper on the fingers and the wrist reads the given values, the true hand's
+    /// own calipers (measured on the simulated hand at its true joints, an independent reading)
+    /// come nearer, the markers stay where they were on the skin (the thickness is scaled about
+    /// the dorsal side they hold), and the surface stays as close to the CT-like reference and
+    /// homologous.
     #[test]
-    fn section_scaling_makes_the_fingers_read_their_calipers() {
+    fn section_scaling_makes_fingers_and_wrist_read_their_calipers() {
         let (s, t, model) = procedural_seven();
         let run = |on: bool| {
             let opts = SkinOptions {
@@ -1481,9 +1502,30 @@ mod tests {
             finger_worst(&plain),
             finger_worst(&scaled)
         );
+        let wrist_worst = |f: &SkinFit| {
+            f.caliper_residuals_mm
+                .iter()
+                .filter(|(n, _)| n.starts_with("wrist"))
+                .fold(0.0_f64, |w, (_, r)| w.max(r.abs()))
+        };
+        let marker_worst = |f: &SkinFit| {
+            f.landmark_residuals_mm
+                .values()
+                .fold(0.0_f64, |w, r| w.max(r.abs()))
+        };
+        eprintln!(
+            "wrist calipers, worst miss: {:.2} -> {:.2} mm; markers off their offset on the \
+             skin, worst: {:.2} -> {:.2} mm",
+            wrist_worst(&plain),
+            wrist_worst(&scaled),
+            marker_worst(&plain),
+            marker_worst(&scaled)
+        );
         assert_eq!(scaled.caliper_residuals_mm.len(), 22);
         assert!(finger_worst(&plain) > 0.5);
         assert!(finger_worst(&scaled) <= 0.3);
+        assert!(wrist_worst(&scaled) <= 0.1);
+        assert!(marker_worst(&scaled) <= marker_worst(&plain) + 0.05);
         // Against the true hand: each finger dimension measured on both at their own joints
         // (a finger's section needs no landmark).
         let truth = measure_dimensions(&s.true_skin, &s.true_skeleton, &BTreeMap::new());

@@ -158,6 +158,13 @@ fn within_reach(x: Vec3, origin: Vec3, reach: f64) -> Vec3 {
 /// rest or template volume; the absolute value is used), from which the target volume
 /// `opts.target_fraction · |reference|` is set. Elements that are not inverted, and nodes that
 /// are not needed, stay where they are.
+///
+/// What the runs leave inverted is tried once more from where they left it, as a fresh start
+/// (the boundary held again at first, each boundary node given what is left of its
+/// `opts.max_boundary_move_mm`), and that result kept when it leaves fewer: the runs widen
+/// around what they first found and stop once one clears nothing; a fresh start works on the
+/// last few alone, and sometimes clears a sliver between nodes the runs had moved onto each
+/// other with the interior alone.
 pub fn untangle(
     nodes: &mut [Point],
     tets: &[[usize; 4]],
@@ -170,6 +177,56 @@ pub fn untangle(
     for &v in boundary {
         on_boundary[v] = true;
     }
+    let original = nodes.to_vec();
+    let budget: Vec<f64> = on_boundary
+        .iter()
+        .map(|&b| {
+            if b {
+                opts.max_boundary_move_mm
+            } else {
+                f64::INFINITY
+            }
+        })
+        .collect();
+    let mut stats = untangle_runs(nodes, tets, &on_boundary, reference, opts, &budget);
+    if stats.inverted_after > 0 {
+        let left: Vec<f64> = budget
+            .iter()
+            .zip(nodes.iter().zip(&original))
+            .map(|(b, (a, o))| (b - (a - o).norm()).max(0.0))
+            .collect();
+        let mut again = nodes.to_vec();
+        let second = untangle_runs(&mut again, tets, &on_boundary, reference, opts, &left);
+        stats.sweeps += second.sweeps;
+        if second.inverted_after < stats.inverted_after {
+            nodes.copy_from_slice(&again);
+            stats.inverted_after = second.inverted_after;
+        }
+    }
+    for ((a, b), &boundary_node) in nodes.iter().zip(&original).zip(&on_boundary) {
+        let d = (a - b).norm();
+        if d > 0.0 {
+            stats.nodes_moved += 1;
+            stats.max_move_mm = stats.max_move_mm.max(d);
+            if boundary_node {
+                stats.max_boundary_move_mm = stats.max_boundary_move_mm.max(d);
+            }
+        }
+    }
+    stats
+}
+
+/// The runs of [`untangle`], each node of the boundary (`on_boundary`) given way by at most
+/// its `budget`, mm; the counts of what is inverted and the sweeps in the stats.
+fn untangle_runs(
+    nodes: &mut [Point],
+    tets: &[[usize; 4]],
+    on_boundary: &[bool],
+    reference: &[f64],
+    opts: &UntangleOptions,
+    budget: &[f64],
+) -> UntangleStats {
+    let n = nodes.len();
     let inverted = |nodes: &[Point]| -> Vec<usize> {
         (0..tets.len())
             .filter(|&t| signed_volume(nodes, &tets[t]) <= 0.0)
@@ -222,7 +279,7 @@ pub fn untangle(
                     for &v in &tets[t] {
                         for &u in star[v].iter().flat_map(|&s| tets[s].iter()) {
                             if on_boundary[u] {
-                                reach[u] = reach[u].max(boundary_reach);
+                                reach[u] = reach[u].max(boundary_reach.min(budget[u]));
                             }
                             if reach[u] > 0.0 {
                                 active[u] = true;
@@ -270,6 +327,7 @@ pub fn untangle(
                 let region = Region {
                     rings,
                     boundary_reach,
+                    budget,
                 };
                 for group in touching_groups(tets, &star, &bad) {
                     untangle_jointly(
@@ -311,16 +369,6 @@ pub fn untangle(
         }
     }
     stats.inverted_after = bad.len();
-    for ((a, b), &boundary_node) in nodes.iter().zip(&start).zip(&on_boundary) {
-        let d = (a - b).norm();
-        if d > 0.0 {
-            stats.nodes_moved += 1;
-            stats.max_move_mm = stats.max_move_mm.max(d);
-            if boundary_node {
-                stats.max_boundary_move_mm = stats.max_boundary_move_mm.max(d);
-            }
-        }
-    }
     stats
 }
 
@@ -358,11 +406,13 @@ fn touching_groups(tets: &[[usize; 4]], star: &[Vec<usize>], bad: &[usize]) -> V
 }
 
 /// The neighbourhood [`untangle_jointly`] moves: the nodes within `rings` rings of the
-/// elements it untangles, a boundary node among them by at least `boundary_reach`.
+/// elements it untangles, a boundary node among them by at least `boundary_reach` (at most
+/// its `budget`).
 #[derive(Clone, Copy, Debug)]
-struct Region {
+struct Region<'a> {
     rings: usize,
     boundary_reach: f64,
+    budget: &'a [f64],
 }
 
 /// The problem of the module documentation for all free nodes of the `region` around the
@@ -385,6 +435,7 @@ fn untangle_jointly(
     Region {
         rings,
         boundary_reach,
+        budget,
     }: Region,
 ) {
     let n = nodes.len();
@@ -407,7 +458,7 @@ fn untangle_jointly(
     }
     let (free, free_reach): (Vec<usize>, Vec<f64>) = (0..n)
         .filter(|&v| in_region[v])
-        .map(|v| (v, reach[v].max(boundary_reach)))
+        .map(|v| (v, reach[v].max(boundary_reach.min(budget[v]))))
         .filter(|&(_, r)| r > 0.0)
         .unzip();
     if free.is_empty() || free.len() > JOINT_MAX_NODES {
@@ -745,9 +796,11 @@ mod tests {
         boundary_reach: f64,
     ) {
         let star = node_stars(nodes.len(), tets);
+        let budget = vec![f64::INFINITY; nodes.len()];
         let region = Region {
             rings: 1,
             boundary_reach,
+            budget: &budget,
         };
         untangle_jointly(nodes, tets, &star, bad, target, reach, start, region);
     }
@@ -800,6 +853,33 @@ mod tests {
             }
         }
         assert!(nodes[6].z > nodes[7].z, "{} {}", nodes[6], nodes[7]);
+    }
+
+    /// The [`swapped_pair`] with every node on the boundary and a reach too short to part the
+    /// pair (each of its nodes must pass the other, 0.6 mm apart): elements stay inverted, and
+    /// the fresh start after the runs moves no node further than the reach from where it was
+    /// before either (its budget is what the runs left; given the reach again, it would part
+    /// the pair).
+    #[test]
+    fn the_fresh_start_keeps_the_boundary_within_its_reach() {
+        let (mut nodes, tets, target, _) = swapped_pair();
+        let start = nodes.clone();
+        let reference: Vec<f64> = target.iter().map(|t| t * 10.0).collect();
+        let opts = UntangleOptions {
+            max_boundary_move_mm: 0.2,
+            ..UntangleOptions::default()
+        };
+        let boundary: Vec<usize> = (0..nodes.len()).collect();
+        let stats = untangle(&mut nodes, &tets, &boundary, &reference, &opts);
+        assert!(stats.inverted_after > 0, "{stats:?}");
+        for (v, (p, q)) in nodes.iter().zip(&start).enumerate() {
+            assert!(
+                (p - q).norm() <= 0.2 + 1e-9,
+                "node {v} moved {}",
+                (p - q).norm()
+            );
+        }
+        assert!(stats.max_boundary_move_mm <= 0.2 + 1e-9, "{stats:?}");
     }
 
     /// Eight tetrahedra fanned around one free node inside a held octahedron: the node pushed
