@@ -138,8 +138,8 @@ pub struct SkinOptions {
     /// Scale each finger's fine skin across its bones, and the wrist's across the forearm, by
     /// what a caliper on it still misses after the caliper rounds ([`super::section_scale`]);
     /// off (the default) leaves the rounds' skin, whose finger calipers stop at
-    /// [`Self::finger_caliper_slack_mm`] or further. Opt-in while posed meshes it gives keep an inverted element (README, "Finger
-    /// sections scaled to their calipers").
+    /// [`Self::finger_caliper_slack_mm`] or further. Opt-in while posed meshes it gives keep an
+    /// inverted element (README, "Sections scaled about the dorsal skin, and the wrist's").
     pub section_scaling: bool,
     /// Relax the fitted skin where it folds ([`super::unfold::unfold_skin`]): the fit on the
     /// simplified template, carried to the fine one by per-face frames, turns faces over where
