@@ -34,6 +34,19 @@ use std::collections::BTreeMap;
 /// wrong reading or a section that did not measure, not a finger to reshape.
 pub const MAX_SCALE_CHANGE: f64 = 0.15;
 
+/// `given / measured` for dimension `d` from its caliper's miss (`measured - given`, by
+/// dimension name), within [`MAX_SCALE_CHANGE`]; `None` when `d` is not given or not read.
+fn caliper_scale(
+    d: Dimension,
+    misses: &BTreeMap<String, f64>,
+    given: &BTreeMap<Dimension, f64>,
+) -> Option<f64> {
+    let value = *given.get(&d)?;
+    let measured = value + misses.get(&d.name())?;
+    (measured > 0.0 && value > 0.0)
+        .then(|| (value / measured).clamp(1.0 - MAX_SCALE_CHANGE, 1.0 + MAX_SCALE_CHANGE))
+}
+
 /// Breadth and thickness scale per section joint: `given / measured` from the calipers'
 /// misses (`measured - given`, by dimension name), within [`MAX_SCALE_CHANGE`].
 pub fn section_scales(
@@ -41,18 +54,13 @@ pub fn section_scales(
     given: &BTreeMap<Dimension, f64>,
 ) -> BTreeMap<Joint, [f64; 2]> {
     let mut out: BTreeMap<Joint, [f64; 2]> = BTreeMap::new();
-    for (d, &value) in given {
+    for &d in given.keys() {
         let Some(joint) = d.section_joint() else {
             continue;
         };
-        let Some(miss) = misses.get(&d.name()) else {
+        let Some(s) = caliper_scale(d, misses, given) else {
             continue;
         };
-        let measured = value + miss;
-        if measured <= 0.0 || value <= 0.0 {
-            continue;
-        }
-        let s = (value / measured).clamp(1.0 - MAX_SCALE_CHANGE, 1.0 + MAX_SCALE_CHANGE);
         let k = match d {
             Dimension::BreadthProximal(_) | Dimension::BreadthDistal(_) => 0,
             _ => 1,
@@ -69,15 +77,9 @@ pub fn wrist_scales(
     misses: &BTreeMap<String, f64>,
     given: &BTreeMap<Dimension, f64>,
 ) -> Option<[f64; 2]> {
-    let scale = |d: Dimension| -> Option<f64> {
-        let value = *given.get(&d)?;
-        let measured = value + misses.get(&d.name())?;
-        (measured > 0.0 && value > 0.0)
-            .then(|| (value / measured).clamp(1.0 - MAX_SCALE_CHANGE, 1.0 + MAX_SCALE_CHANGE))
-    };
     match (
-        scale(Dimension::WristBreadth),
-        scale(Dimension::WristThickness),
+        caliper_scale(Dimension::WristBreadth, misses, given),
+        caliper_scale(Dimension::WristThickness, misses, given),
     ) {
         (None, None) => None,
         (b, t) => Some([b.unwrap_or(1.0), t.unwrap_or(1.0)]),
