@@ -145,6 +145,16 @@ fn skin_stage(c: &mut Criterion) {
             }))
         })
     });
+    // The default pulls each digit joint's section towards the link model's centre; the
+    // paper's fit has no such terms.
+    g.bench_function("default_low_resolution_without_centre_terms", |b| {
+        b.iter(|| {
+            run(black_box(&SkinOptions {
+                centre_weight: 0.0,
+                ..SkinOptions::default()
+            }))
+        })
+    });
     // The fingers' sections scaled to their calipers after the rounds (opt-in).
     g.bench_function("default_low_resolution_with_section_scaling", |b| {
         b.iter(|| {
