@@ -1275,6 +1275,23 @@ mod tests {
         )
     }
 
+    /// A typical capture of `body` with 10-s calibration trials, its template and its link
+    /// model.
+    fn typical_ten_seconds(
+        seed: u64,
+        body: crate::synth::Body,
+    ) -> (crate::synth::SyntheticSubject, TemplateHand, LinkModel) {
+        subject_template_model_with(
+            SynthOptions {
+                duration_s: Some(10.0),
+                voxel_mm: 1.0,
+                body,
+                ..SynthOptions::new(seed, Preset::Typical)
+            },
+            Preset::Typical.error_model(),
+        )
+    }
+
     /// The skin fit of a simulated subject's static trial with its link model.
     fn fit_with_model(
         s: &crate::synth::SyntheticSubject,
@@ -1291,6 +1308,14 @@ mod tests {
             opts,
         )
         .unwrap()
+    }
+
+    /// The largest landmark residual of a fit (a marker's distance to the skin minus its
+    /// offset), mm.
+    fn worst_marker(f: &SkinFit) -> f64 {
+        f.landmark_residuals_mm
+            .values()
+            .fold(0.0_f64, |w, r| w.max(r.abs()))
     }
 
     /// Mean distance of `m`'s vertices from the surface behind `tree`, mm.
@@ -1310,15 +1335,7 @@ mod tests {
             (13, crate::synth::Body::Procedural),
             (14, crate::synth::Body::Template),
         ] {
-            let (s, t, model) = subject_template_model_with(
-                SynthOptions {
-                    duration_s: Some(10.0),
-                    voxel_mm: 1.0,
-                    body,
-                    ..SynthOptions::new(seed, Preset::Typical)
-                },
-                Preset::Typical.error_model(),
-            );
+            let (s, t, model) = typical_ten_seconds(seed, body);
             let fit = fit_with_model(&s, &t, &model, &SkinOptions::default());
             let out = fit.link_model.expect("a link model was given");
             // The true centre's distance from a hinge's estimated axis line through `c`.
@@ -1362,15 +1379,7 @@ mod tests {
             (13, crate::synth::Body::Procedural),
             (14, crate::synth::Body::Template),
         ] {
-            let (s, t, model) = subject_template_model_with(
-                SynthOptions {
-                    duration_s: Some(10.0),
-                    voxel_mm: 1.0,
-                    body,
-                    ..SynthOptions::new(seed, Preset::Typical)
-                },
-                Preset::Typical.error_model(),
-            );
+            let (s, t, model) = typical_ten_seconds(seed, body);
             // The default fit against the same fit without the terms: equal skins fail.
             let on = fit_with_model(&s, &t, &model, &SkinOptions::default());
             let without = SkinOptions {
@@ -1383,19 +1392,14 @@ mod tests {
                 mean_distance(&tree, &off.high),
                 mean_distance(&tree, &on.high),
             );
-            let marker_worst = |f: &SkinFit| {
-                f.landmark_residuals_mm
-                    .values()
-                    .fold(0.0_f64, |w, r| w.max(r.abs()))
-            };
             eprintln!(
                 "{body:?}: skin to reference {a:.3} -> {b:.3} mm; markers off their offset on \
                  the skin, worst {:.2} -> {:.2} mm",
-                marker_worst(&off),
-                marker_worst(&on)
+                worst_marker(&off),
+                worst_marker(&on)
             );
             assert!(b < a, "{body:?}: {a:.3} -> {b:.3} mm");
-            assert!(marker_worst(&on) <= marker_worst(&off) + 0.5, "{body:?}");
+            assert!(worst_marker(&on) <= worst_marker(&off) + 0.5, "{body:?}");
             assert_eq!(on.high.faces, t.mesh.faces);
         }
     }
@@ -1575,24 +1579,19 @@ mod tests {
                 .filter(|(n, _)| n.starts_with("wrist"))
                 .fold(0.0_f64, |w, (_, r)| w.max(r.abs()))
         };
-        let marker_worst = |f: &SkinFit| {
-            f.landmark_residuals_mm
-                .values()
-                .fold(0.0_f64, |w, r| w.max(r.abs()))
-        };
         eprintln!(
             "wrist calipers, worst miss: {:.2} -> {:.2} mm; markers off their offset on the \
              skin, worst: {:.2} -> {:.2} mm",
             wrist_worst(&plain),
             wrist_worst(&scaled),
-            marker_worst(&plain),
-            marker_worst(&scaled)
+            worst_marker(&plain),
+            worst_marker(&scaled)
         );
         assert_eq!(scaled.caliper_residuals_mm.len(), 22);
         assert!(finger_worst(&plain) > 0.5);
         assert!(finger_worst(&scaled) <= 0.3);
         assert!(wrist_worst(&scaled) <= 0.1);
-        assert!(marker_worst(&scaled) <= marker_worst(&plain) + 0.05);
+        assert!(worst_marker(&scaled) <= worst_marker(&plain) + 0.05);
         // Against the true hand: each finger dimension measured on both at their own joints
         // (a finger's section needs no landmark).
         let truth = measure_dimensions(&s.true_skin, &s.true_skeleton, &BTreeMap::new());
