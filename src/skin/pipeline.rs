@@ -291,15 +291,16 @@ pub fn fit_skin(
     link_model: Option<&LinkModel>,
     opts: &SkinOptions,
 ) -> Result<SkinFit> {
-    let reliable = {
-        let mut r = [true; 16];
-        if let Some(m) = link_model {
-            for e in &m.joints {
-                r[e.joint.index()] = e.diagnostics.warnings.is_empty();
-            }
+    // Per joint: whether the link model trusts it (no warning), and how far its centre spreads
+    // over the bootstrap replicates.
+    let mut reliable = [true; 16];
+    let mut centre_sd: [Option<f64>; 16] = [None; 16];
+    if let Some(m) = link_model {
+        for e in &m.joints {
+            reliable[e.joint.index()] = e.diagnostics.warnings.is_empty();
+            centre_sd[e.joint.index()] = e.diagnostics.centre_sd_mm;
         }
-        r
-    };
+    }
     let full_link_model = link_model;
     let link_model = link_model.map(|m| &m.skeleton);
     let mut names = landmark_names();
@@ -513,13 +514,10 @@ pub fn fit_skin(
     if let (Some(sk), true) = (link_model, opts.centre_weight > 0.0) {
         // A centre whose bootstrap replicates spread over millimetres pins a section of skin
         // to a guess: short trials give such centres without tripping a warning.
-        let spread = |j: Joint| {
-            full_link_model
-                .and_then(|m| m.joints.iter().find(|e| e.joint == j))
-                .and_then(|e| e.diagnostics.centre_sd_mm)
-        };
         for j in centre_joints().into_iter().filter(|j| reliable[j.index()]) {
-            if let Some(sd) = spread(j).filter(|sd| sd.is_nan() || *sd > CENTRE_SD_LIMIT_MM) {
+            if let Some(sd) =
+                centre_sd[j.index()].filter(|sd| sd.is_nan() || *sd > CENTRE_SD_LIMIT_MM)
+            {
                 log::debug!(
                     "skin: {} left out of the centre terms (its centre's spread {sd:.1} mm)",
                     j.name()
