@@ -7,8 +7,8 @@ use ergohand::anatomy::Side;
 use ergohand::geometry::{Point, TriMesh};
 use ergohand::template::load_template;
 use ergohand::tet::{
-    bind_boundary, isosurface_stuffing, place_boundary, subject_tet_mesh, ArapOptions,
-    ElasticSolver, StuffingParams,
+    bind_boundary, isosurface_stuffing, place_boundary, subject_tet_mesh, untangle, ArapOptions,
+    ElasticSolver, StuffingParams, UntangleOptions,
 };
 use std::hint::black_box;
 
@@ -60,6 +60,28 @@ fn tet_bench(c: &mut Criterion) {
         })
     });
     g.bench_function("quality", |b| b.iter(|| black_box(&tet).quality()));
+    // A fist's palmar crease that the penalty sweeps leave one element inverted in: what
+    // untangling costs where the Winslow step has to finish it.
+    let fold: serde_json::Value =
+        serde_json::from_str(include_str!("../tests/data/untangle_crease_fold.json")).unwrap();
+    let nodes: Vec<Point> = serde_json::from_value::<Vec<[f64; 3]>>(fold["nodes"].clone())
+        .unwrap()
+        .into_iter()
+        .map(|p| Point::new(p[0], p[1], p[2]))
+        .collect();
+    let tets: Vec<[usize; 4]> = serde_json::from_value(fold["tets"].clone()).unwrap();
+    let held: Vec<usize> = serde_json::from_value(fold["held"].clone()).unwrap();
+    let reference: Vec<f64> = serde_json::from_value(fold["reference"].clone()).unwrap();
+    let opts = UntangleOptions {
+        max_boundary_move_mm: 0.0,
+        ..Default::default()
+    };
+    g.bench_function("untangle_crease_fold", |b| {
+        b.iter(|| {
+            let mut n = nodes.clone();
+            untangle(&mut n, black_box(&tets), &held, &reference, &opts)
+        })
+    });
     g.finish();
 }
 

@@ -21,12 +21,14 @@ pub mod elastic;
 pub mod stuffing;
 pub mod transfer;
 pub mod untangle;
+pub mod winslow;
 
 pub use crate::geometry::tet_mesh::{Stats, TetGroups, TetMesh, TetQuality};
 pub use elastic::{ArapOptions, ElasticSolver, ElasticStats};
 pub use stuffing::{isosurface_stuffing, StuffingParams};
 pub use transfer::{bind_boundary, place_boundary, place_boundary_nodes, SurfaceBinding};
 pub use untangle::{untangle, UntangleOptions, UntangleStats};
+pub use winslow::untangle_winslow;
 
 use crate::error::{Error, Result};
 use crate::geometry::closest_point::AabbTree;
