@@ -219,23 +219,7 @@ pub fn untangle(
         let bad: Vec<usize> = (0..tets.len())
             .filter(|&t| signed_volume(nodes, &tets[t]) <= 0.0)
             .collect();
-        let mut in_region = vec![false; n];
-        let mut frontier: Vec<usize> = bad.iter().flat_map(|&t| tets[t]).collect();
-        for &v in &frontier {
-            in_region[v] = true;
-        }
-        for _ in 0..WINSLOW_RINGS {
-            let mut next = Vec::new();
-            for &v in &frontier {
-                for &u in star[v].iter().flat_map(|&t| tets[t].iter()) {
-                    if !in_region[u] {
-                        in_region[u] = true;
-                        next.push(u);
-                    }
-                }
-            }
-            frontier = next;
-        }
+        let in_region = within_rings(tets, &star, &bad, WINSLOW_RINGS);
         let free: Vec<usize> = (0..n)
             .filter(|&v| in_region[v] && !on_boundary[v])
             .collect();
@@ -426,6 +410,34 @@ const JOINT_RINGS: usize = 3;
 /// sweeps handle.
 const JOINT_MAX_NODES: usize = 250;
 
+/// Node -> whether it is a corner of one of the elements `bad` or within `rings` rings of
+/// neighbours of one (`star`: each node's elements).
+fn within_rings(
+    tets: &[[usize; 4]],
+    star: &[Vec<usize>],
+    bad: &[usize],
+    rings: usize,
+) -> Vec<bool> {
+    let mut in_region = vec![false; star.len()];
+    let mut frontier: Vec<usize> = bad.iter().flat_map(|&t| tets[t]).collect();
+    for &v in &frontier {
+        in_region[v] = true;
+    }
+    for _ in 0..rings {
+        let mut next = Vec::new();
+        for &v in &frontier {
+            for &u in star[v].iter().flat_map(|&t| tets[t].iter()) {
+                if !in_region[u] {
+                    in_region[u] = true;
+                    next.push(u);
+                }
+            }
+        }
+        frontier = next;
+    }
+    in_region
+}
+
 /// The elements `bad` grouped by shared nodes (each group a connected cluster).
 fn touching_groups(tets: &[[usize; 4]], star: &[Vec<usize>], bad: &[usize]) -> Vec<Vec<usize>> {
     let is_bad: std::collections::HashSet<usize> = bad.iter().copied().collect();
@@ -485,23 +497,7 @@ fn untangle_jointly(
     }: Region,
 ) {
     let n = nodes.len();
-    let mut in_region = vec![false; n];
-    let mut frontier: Vec<usize> = bad.iter().flat_map(|&t| tets[t]).collect();
-    for &v in &frontier {
-        in_region[v] = true;
-    }
-    for _ in 0..rings {
-        let mut next = Vec::new();
-        for &v in &frontier {
-            for &u in star[v].iter().flat_map(|&t| tets[t].iter()) {
-                if !in_region[u] {
-                    in_region[u] = true;
-                    next.push(u);
-                }
-            }
-        }
-        frontier = next;
-    }
+    let in_region = within_rings(tets, star, bad, rings);
     let (free, free_reach): (Vec<usize>, Vec<f64>) = (0..n)
         .filter(|&v| in_region[v])
         .map(|v| (v, reach[v].max(boundary_reach.min(budget[v]))))
