@@ -370,8 +370,8 @@ pub(crate) fn nearest_rotation(f: &Matrix3<f64>) -> Matrix3<f64> {
 /// element converges in 4-8.
 const MAX_POLAR_STEPS: usize = 30;
 
-/// The cofactor matrix of `m` (`det m · m⁻ᵀ`).
-fn cofactor(m: &Matrix3<f64>) -> Matrix3<f64> {
+/// The cofactor matrix of `m` (`det m · m⁻ᵀ`, `∂ det m / ∂ m`; defined for singular `m` too).
+pub(crate) fn cofactor(m: &Matrix3<f64>) -> Matrix3<f64> {
     let c0 = m.column(1).cross(&m.column(2));
     let c1 = m.column(2).cross(&m.column(0));
     let c2 = m.column(0).cross(&m.column(1));

@@ -121,6 +121,13 @@ fn star_volumes(
         .collect()
 }
 
+/// The elements of `tets` whose signed volume at `nodes` is not positive.
+fn inverted_elements(nodes: &[Point], tets: &[[usize; 4]]) -> Vec<usize> {
+    (0..tets.len())
+        .filter(|&t| signed_volume(nodes, &tets[t]) <= 0.0)
+        .collect()
+}
+
 /// Signed volumes scored as [`better`] compares them: (inverted count, smallest volume).
 fn volume_score(vols: impl Iterator<Item = f64> + Clone) -> (usize, f64) {
     let bad = vols.clone().filter(|v| *v <= 0.0).count();
@@ -216,18 +223,14 @@ pub fn untangle(
     }
     if stats.inverted_after > 0 {
         let star = node_stars(n, tets);
-        let bad: Vec<usize> = (0..tets.len())
-            .filter(|&t| signed_volume(nodes, &tets[t]) <= 0.0)
-            .collect();
+        let bad = inverted_elements(nodes, tets);
         let in_region = within_rings(tets, &star, &bad, WINSLOW_RINGS);
         let free: Vec<usize> = (0..n)
             .filter(|&v| in_region[v] && !on_boundary[v])
             .collect();
         let mut again = nodes.to_vec();
         untangle_winslow(&mut again, tets, &free, reference);
-        let left = (0..tets.len())
-            .filter(|&t| signed_volume(&again, &tets[t]) <= 0.0)
-            .count();
+        let left = inverted_elements(&again, tets).len();
         if left < stats.inverted_after {
             nodes.copy_from_slice(&again);
             stats.inverted_after = left;
@@ -257,11 +260,7 @@ fn untangle_runs(
     budget: &[f64],
 ) -> UntangleStats {
     let n = nodes.len();
-    let inverted = |nodes: &[Point]| -> Vec<usize> {
-        (0..tets.len())
-            .filter(|&t| signed_volume(nodes, &tets[t]) <= 0.0)
-            .collect()
-    };
+    let inverted = |nodes: &[Point]| inverted_elements(nodes, tets);
     let mut bad = inverted(nodes);
     let mut stats = UntangleStats {
         inverted_before: bad.len(),

@@ -15,6 +15,7 @@
 //! The reference shape of an element is the regular tetrahedron of its reference volume, so a
 //! mesh needs no rest positions, only rest volumes.
 
+use super::elastic::cofactor;
 use crate::geometry::tet_mesh::tet_signed_volume;
 use crate::geometry::{Point, Vec3};
 use nalgebra::Matrix3;
@@ -42,14 +43,6 @@ fn regular_inverse(volume: f64) -> Matrix3<f64> {
     // The unit-edge regular tetrahedron's volume is `det e / 6 = 1 / (6√2)`.
     let scale = (volume.abs().max(1e-300) / e.determinant() * 6.0).cbrt();
     (e * scale).try_inverse().unwrap_or_else(Matrix3::identity)
-}
-
-/// The cofactor matrix of `j` (`∂ det J / ∂ J`), defined for singular `j` too.
-fn cofactor(j: &Matrix3<f64>) -> Matrix3<f64> {
-    let c0 = j.column(1).cross(&j.column(2));
-    let c1 = j.column(2).cross(&j.column(0));
-    let c2 = j.column(0).cross(&j.column(1));
-    Matrix3::from_columns(&[c0, c1, c2])
 }
 
 /// The problem of the module documentation on the elements `elems` of `tets`, the nodes
@@ -150,10 +143,9 @@ pub fn untangle_winslow(
     for (k, &v) in free.iter().enumerate() {
         column[v] = k;
     }
-    let mut elems: Vec<usize> = (0..tets.len())
+    let elems: Vec<usize> = (0..tets.len())
         .filter(|&t| tets[t].iter().any(|&v| column[v] != usize::MAX))
         .collect();
-    elems.sort_unstable();
     let total: f64 = elems
         .iter()
         .map(|&t| reference[t].abs())
@@ -176,8 +168,9 @@ pub fn untangle_winslow(
             tet_signed_volume(&a, &b, &c, &d) > 0.0
         })
     };
-    if free.is_empty() || positive(nodes) {
-        return positive(nodes);
+    let already = positive(nodes);
+    if free.is_empty() || already {
+        return already;
     }
     let mut x: Vec<f64> = free
         .iter()
@@ -294,58 +287,54 @@ fn lbfgs(p: &Problem, nodes: &mut [Point], x: &mut [f64], eps: f64) {
     p.set(nodes, x);
 }
 
-/// A cube of 5 x 5 x 5 nodes 1 mm apart cut into Kuhn tetrahedra, the 27 nodes off its faces
-/// moved at random (seeded) by up to `amplitude` mm along each axis, which inverts some of
-/// their elements: the nodes, the elements and the moved nodes.
-#[cfg(test)]
-pub(crate) fn scrambled_cube(
-    seed: u64,
-    amplitude: f64,
-) -> (Vec<Point>, Vec<[usize; 4]>, Vec<usize>) {
-    let k = 5;
-    let id = |i: usize, j: usize, l: usize| (i * k + j) * k + l;
-    let mut nodes = Vec::new();
-    for i in 0..k {
-        for j in 0..k {
-            for l in 0..k {
-                nodes.push(Point::new(i as f64, j as f64, l as f64));
-            }
-        }
-    }
-    let mut tets = Vec::new();
-    for i in 0..k - 1 {
-        for j in 0..k - 1 {
-            for l in 0..k - 1 {
-                let c = |b: u8| {
-                    let b = usize::from(b);
-                    id(i + (b & 1), j + ((b >> 1) & 1), l + ((b >> 2) & 1))
-                };
-                for t in crate::geometry::marching_tetrahedra::kuhn_tetrahedra() {
-                    tets.push(t.map(c));
-                }
-            }
-        }
-    }
-    let interior: Vec<usize> = (0..nodes.len())
-        .filter(|&v| {
-            let p = nodes[v];
-            [p.x, p.y, p.z]
-                .iter()
-                .all(|c| *c > 0.5 && *c < (k - 1) as f64 - 0.5)
-        })
-        .collect();
-    let mut rng = crate::rng::Rng::new(seed);
-    for &v in &interior {
-        for a in 0..3 {
-            nodes[v].coords[a] += rng.range(-amplitude, amplitude);
-        }
-    }
-    (nodes, tets, interior)
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A cube of 5 x 5 x 5 nodes 1 mm apart cut into Kuhn tetrahedra, the 27 nodes off its faces
+    /// moved at random (seeded) by up to 0.9 mm along each axis, which inverts some of
+    /// their elements: the nodes, the elements and the moved nodes.
+    fn scrambled_cube(seed: u64) -> (Vec<Point>, Vec<[usize; 4]>, Vec<usize>) {
+        let k = 5;
+        let id = |i: usize, j: usize, l: usize| (i * k + j) * k + l;
+        let mut nodes = Vec::new();
+        for i in 0..k {
+            for j in 0..k {
+                for l in 0..k {
+                    nodes.push(Point::new(i as f64, j as f64, l as f64));
+                }
+            }
+        }
+        let mut tets = Vec::new();
+        for i in 0..k - 1 {
+            for j in 0..k - 1 {
+                for l in 0..k - 1 {
+                    let c = |b: u8| {
+                        let b = usize::from(b);
+                        id(i + (b & 1), j + ((b >> 1) & 1), l + ((b >> 2) & 1))
+                    };
+                    for t in crate::geometry::marching_tetrahedra::kuhn_tetrahedra() {
+                        tets.push(t.map(c));
+                    }
+                }
+            }
+        }
+        let interior: Vec<usize> = (0..nodes.len())
+            .filter(|&v| {
+                let p = nodes[v];
+                [p.x, p.y, p.z]
+                    .iter()
+                    .all(|c| *c > 0.5 && *c < (k - 1) as f64 - 0.5)
+            })
+            .collect();
+        let mut rng = crate::rng::Rng::new(seed);
+        for &v in &interior {
+            for a in 0..3 {
+                nodes[v].coords[a] += rng.range(-0.9, 0.9);
+            }
+        }
+        (nodes, tets, interior)
+    }
 
     fn volume(nodes: &[Point], t: &[usize; 4]) -> f64 {
         let [a, b, c, d] = t.map(|v| nodes[v]);
@@ -401,7 +390,7 @@ mod tests {
     /// held nodes do not move.
     #[test]
     fn scrambled_interior_of_a_cube_is_untangled() {
-        let (mut nodes, tets, interior) = scrambled_cube(7, 0.9);
+        let (mut nodes, tets, interior) = scrambled_cube(7);
         let reference = vec![1.0 / 6.0; tets.len()];
         let inverted = tets.iter().filter(|t| volume(&nodes, t) <= 0.0).count();
         assert!(inverted >= 10, "the scramble inverts elements ({inverted})");
