@@ -119,10 +119,14 @@ enum Command {
         /// the fit's displacement there (for comparison).
         #[arg(long)]
         no_unfold: bool,
-        /// After the caliper rounds, scale each finger's sections across its bones and the
-        /// wrist's across the forearm until a caliper on the skin reads the given dimensions
-        /// (within about 0.3 mm instead of the rounds' 1 mm slack on a finger).
+        /// Leave the fingers' and the wrist's sections as the caliper rounds give them, instead
+        /// of scaling each finger across its bones and the wrist across the forearm until a
+        /// caliper on the skin reads the given dimensions (for comparison: the rounds leave a
+        /// finger up to 1 mm off).
         #[arg(long)]
+        no_section_scaling: bool,
+        /// The default (sections scaled to their calipers); kept so that older scripts run.
+        #[arg(long, hide = true, conflicts_with = "no_section_scaling")]
         section_scaling: bool,
         /// Weight of the joint-centre terms of the skin fit; 0 leaves them out.
         #[arg(long, default_value_t = ergohand::skin::pipeline::CENTRE_WEIGHT)]
@@ -322,7 +326,8 @@ fn main() -> ExitCode {
             fit_resolution,
             no_template_posing,
             no_unfold,
-            section_scaling,
+            no_section_scaling,
+            section_scaling: _,
             centre_weight,
             caliper_rounds,
             shape_prior,
@@ -333,7 +338,7 @@ fn main() -> ExitCode {
                     caliper_rounds,
                     shape_prior: cli::reconstruct::shape_prior_option(shape_prior.as_deref())?,
                     unfold: !no_unfold,
-                    section_scaling,
+                    section_scaling: !no_section_scaling,
                     ..o
                 })
             })

@@ -1449,6 +1449,7 @@ fn the_template_cannot_reach_the_procedural_body() {
     assert!(!sdir.join("truth_skin.ply").exists());
     let paper = ergohand::skin::pipeline::SkinOptions {
         shape_prior: ergohand::skin::pipeline::PriorChoice::None,
+        section_scaling: false,
         ..Default::default()
     };
     cli::reconstruct::reconstruct_with(&sdir, &model, &paper).unwrap();
@@ -1496,9 +1497,10 @@ fn the_template_cannot_reach_the_procedural_body() {
     ]);
     assert!(p.status.success(), "{}", stderr(&p));
     finger_segments_keep_their_volume(&prior, &fist, "prior fist");
-    // With the sections scaled to their calipers, a caliper on the fingers reads the given
-    // values where the caliper rounds left them up to their slack off; on the paper's fit,
-    // whose scaled creases fold deepest in the tripod, every built-in pose stays positive.
+    // With the sections scaled to their calipers (the default), a caliper on the fingers reads
+    // the given values where the caliper rounds left them up to their slack off; on the
+    // paper's fit, whose scaled creases fold deepest in the tripod, every built-in pose stays
+    // positive.
     let scaled_model = sdir.join("out-scaled");
     let r = ergohand(&[
         "reconstruct",
@@ -1507,7 +1509,6 @@ fn the_template_cannot_reach_the_procedural_body() {
         scaled_model.to_str().unwrap(),
         "--shape-prior",
         "none",
-        "--section-scaling",
         "-q",
     ]);
     assert!(r.status.success(), "{}", stderr(&r));

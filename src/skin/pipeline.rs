@@ -143,9 +143,9 @@ pub struct SkinOptions {
     pub shape_prior: PriorChoice,
     /// Scale each finger's fine skin across its bones, and the wrist's across the forearm, by
     /// what a caliper on it still misses after the caliper rounds ([`super::section_scale`]);
-    /// off (the default) leaves the rounds' skin, whose finger calipers stop at
-    /// [`Self::finger_caliper_slack_mm`] or further. Opt-in while posed meshes it gives keep an
-    /// inverted element (README, "Sections scaled about the dorsal skin, and the wrist's").
+    /// on by default, so that a caliper on the skin reads the given dimensions; off leaves the
+    /// rounds' skin, whose finger calipers stop at [`Self::finger_caliper_slack_mm`] or
+    /// further (for comparison).
     pub section_scaling: bool,
     /// Relax the fitted skin where it folds ([`super::unfold::unfold_skin`]): the fit on the
     /// simplified template, carried to the fine one by per-face frames, turns faces over where
@@ -166,7 +166,7 @@ impl Default for SkinOptions {
             caliper_gain: CALIPER_GAIN,
             finger_caliper_slack_mm: FINGER_CALIPER_SLACK_MM,
             shape_prior: PriorChoice::Shipped,
-            section_scaling: false,
+            section_scaling: true,
             unfold: true,
         }
     }
