@@ -1447,12 +1447,32 @@ fn the_template_cannot_reach_the_procedural_body() {
     let model = sdir.join("out");
     cli::synth(&opts, &sdir, false).unwrap();
     assert!(!sdir.join("truth_skin.ply").exists());
-    let paper = ergohand::skin::pipeline::SkinOptions {
-        shape_prior: ergohand::skin::pipeline::PriorChoice::None,
-        section_scaling: false,
-        ..Default::default()
-    };
-    cli::reconstruct::reconstruct_with(&sdir, &model, &paper).unwrap();
+    // The paper's fit: no shape prior, the caliper rounds' sections as they are.
+    let r = ergohand(&[
+        "reconstruct",
+        sdir.to_str().unwrap(),
+        "--out",
+        model.to_str().unwrap(),
+        "--shape-prior",
+        "none",
+        "--no-section-scaling",
+        "-q",
+    ]);
+    assert!(r.status.success(), "{}", stderr(&r));
+    let both = ergohand(&[
+        "reconstruct",
+        sdir.to_str().unwrap(),
+        "--out",
+        tmp.path().join("both").to_str().unwrap(),
+        "--section-scaling",
+        "--no-section-scaling",
+    ]);
+    assert!(!both.status.success());
+    assert!(
+        stderr(&both).contains("--no-section-scaling"),
+        "{}",
+        stderr(&both)
+    );
     let v = cli::validate(&sdir, &model, &model.join("report")).unwrap();
     let (link, surface) = v.against_references(&sdir).unwrap();
     let figures = Figures::measure(link, surface, &v.dimensions, &model).unwrap();
