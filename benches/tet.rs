@@ -12,6 +12,9 @@ use ergohand::tet::{
 };
 use std::hint::black_box;
 
+#[path = "../tests/common/crease_fold.rs"]
+mod crease_fold;
+
 fn tet_bench(c: &mut Criterion) {
     faer::set_global_parallelism(faer::Par::Seq);
     let t = load_template(Side::Right).unwrap();
@@ -62,16 +65,12 @@ fn tet_bench(c: &mut Criterion) {
     g.bench_function("quality", |b| b.iter(|| black_box(&tet).quality()));
     // A fist's palmar crease that the penalty sweeps leave one element inverted in: what
     // untangling costs where the Winslow step has to finish it.
-    let fold: serde_json::Value =
-        serde_json::from_str(include_str!("../tests/data/untangle_crease_fold.json")).unwrap();
-    let nodes: Vec<Point> = serde_json::from_value::<Vec<[f64; 3]>>(fold["nodes"].clone())
-        .unwrap()
-        .into_iter()
-        .map(|p| Point::new(p[0], p[1], p[2]))
-        .collect();
-    let tets: Vec<[usize; 4]> = serde_json::from_value(fold["tets"].clone()).unwrap();
-    let held: Vec<usize> = serde_json::from_value(fold["held"].clone()).unwrap();
-    let reference: Vec<f64> = serde_json::from_value(fold["reference"].clone()).unwrap();
+    let crease_fold::CreaseFold {
+        nodes,
+        tets,
+        held,
+        reference,
+    } = crease_fold::crease_fold();
     let opts = UntangleOptions {
         max_boundary_move_mm: 0.0,
         ..Default::default()

@@ -142,6 +142,14 @@ pub fn tet_signed_volume(a: &Point, b: &Point, c: &Point, d: &Point) -> f64 {
     (b - a).dot(&(c - a).cross(&(d - a))) / 6.0
 }
 
+/// Signed volume of the element `tet` of a mesh whose nodes are `nodes` ([`tet_signed_volume`]
+/// of its corners), for code that moves the nodes of a mesh it does not own.
+#[inline]
+pub(crate) fn element_signed_volume(nodes: &[Point], tet: &[usize; 4]) -> f64 {
+    let [a, b, c, d] = tet.map(|i| nodes[i]);
+    tet_signed_volume(&a, &b, &c, &d)
+}
+
 /// The six interior dihedral angles (radians) of tetrahedron `abcd`, at edges ab, ac, ad, bc,
 /// bd, cd: `π` minus the angle between the outward normals of the two faces meeting there.
 /// A degenerate tetrahedron yields NaN angles.

@@ -28,7 +28,7 @@
 //! Nothing moves in a mesh without inverted elements, so a valid mesh is returned unchanged.
 
 use super::winslow::untangle_winslow;
-use crate::geometry::tet_mesh::tet_signed_volume;
+use crate::geometry::tet_mesh::element_signed_volume;
 use crate::geometry::{Point, Vec3};
 use nalgebra::Matrix3;
 use serde::Serialize;
@@ -98,11 +98,6 @@ fn volume_gradient(nodes: &[Point], tet: &[usize; 4], k: usize) -> Vec3 {
     -(c - b).cross(&(d - b)) / 6.0
 }
 
-fn signed_volume(nodes: &[Point], tet: &[usize; 4]) -> f64 {
-    let [a, b, c, d] = tet.map(|i| nodes[i]);
-    tet_signed_volume(&a, &b, &c, &d)
-}
-
 /// The signed volumes of node `v`'s star as functions of `v`'s position `x`: per element
 /// `(g, c)` with `V(x) = g·x + c`, exactly (the volume is linear in one corner).
 fn star_volumes(
@@ -116,7 +111,10 @@ fn star_volumes(
             let tet = &tets[t];
             let k = tet.iter().position(|&x| x == v).unwrap_or(0);
             let g = volume_gradient(nodes, tet, k);
-            (g, signed_volume(nodes, tet) - g.dot(&nodes[v].coords))
+            (
+                g,
+                element_signed_volume(nodes, tet) - g.dot(&nodes[v].coords),
+            )
         })
         .collect()
 }
@@ -124,7 +122,7 @@ fn star_volumes(
 /// The elements of `tets` whose signed volume at `nodes` is not positive.
 fn inverted_elements(nodes: &[Point], tets: &[[usize; 4]]) -> Vec<usize> {
     (0..tets.len())
-        .filter(|&t| signed_volume(nodes, &tets[t]) <= 0.0)
+        .filter(|&t| element_signed_volume(nodes, &tets[t]) <= 0.0)
         .collect()
 }
 
@@ -513,8 +511,13 @@ fn untangle_jointly(
     elems.sort_unstable();
     elems.dedup();
     let x0: Vec<Point> = free.iter().map(|&v| nodes[v]).collect();
-    let score =
-        |nodes: &[Point]| volume_score(elems.iter().map(|&t| signed_volume(nodes, &tets[t])));
+    let score = |nodes: &[Point]| {
+        volume_score(
+            elems
+                .iter()
+                .map(|&t| element_signed_volume(nodes, &tets[t])),
+        )
+    };
     let entry = score(nodes);
     let scale = elems
         .iter()
@@ -526,7 +529,7 @@ fn untangle_jointly(
         elems
             .iter()
             .map(|&t| {
-                (target[t] - signed_volume(nodes, &tets[t]))
+                (target[t] - element_signed_volume(nodes, &tets[t]))
                     .max(0.0)
                     .powi(2)
             })
@@ -549,7 +552,7 @@ fn untangle_jointly(
         }
         let mut active = 0;
         for &t in &elems {
-            let r = target[t] - signed_volume(nodes, &tets[t]);
+            let r = target[t] - element_signed_volume(nodes, &tets[t]);
             if r <= 0.0 {
                 continue;
             }
@@ -752,6 +755,11 @@ fn newton_on_star(terms: &[(Vec3, f64, f64)], x0: Vec3, mu: f64, lower: f64) -> 
     x
 }
 
+// The crease fixture's reader, shared with the bench that times the same crease.
+#[cfg(test)]
+#[path = "../../tests/common/crease_fold.rs"]
+mod crease_fold;
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -775,7 +783,8 @@ mod tests {
                 p[k].coords[axis] += h;
                 let mut m = nodes.clone();
                 m[k].coords[axis] -= h;
-                let fd = (signed_volume(&p, &tet) - signed_volume(&m, &tet)) / (2.0 * h);
+                let fd =
+                    (element_signed_volume(&p, &tet) - element_signed_volume(&m, &tet)) / (2.0 * h);
                 assert!((fd - g[axis]).abs() < 1e-8, "corner {k} axis {axis}");
             }
         }
@@ -787,17 +796,12 @@ mod tests {
     /// stay stuck on it, the Winslow step clears it with the held nodes unmoved.
     #[test]
     fn a_crease_the_sweeps_leave_is_cleared_by_the_winslow_step() {
-        let fold: serde_json::Value =
-            serde_json::from_str(include_str!("../../tests/data/untangle_crease_fold.json"))
-                .unwrap();
-        let nodes: Vec<Point> = serde_json::from_value::<Vec<[f64; 3]>>(fold["nodes"].clone())
-            .unwrap()
-            .into_iter()
-            .map(|p| Point::new(p[0], p[1], p[2]))
-            .collect();
-        let tets: Vec<[usize; 4]> = serde_json::from_value(fold["tets"].clone()).unwrap();
-        let held: Vec<usize> = serde_json::from_value(fold["held"].clone()).unwrap();
-        let reference: Vec<f64> = serde_json::from_value(fold["reference"].clone()).unwrap();
+        let super::crease_fold::CreaseFold {
+            nodes,
+            tets,
+            held,
+            reference,
+        } = super::crease_fold::crease_fold();
         let opts = UntangleOptions {
             max_boundary_move_mm: 0.0,
             ..Default::default()
@@ -846,18 +850,18 @@ mod tests {
             tets.push([6, 7, a, b]);
         }
         for t in tets.iter_mut() {
-            if signed_volume(&nodes, t) < 0.0 {
+            if element_signed_volume(&nodes, t) < 0.0 {
                 t.swap(2, 3);
             }
         }
         let target: Vec<f64> = tets
             .iter()
-            .map(|t| 0.1 * signed_volume(&nodes, t))
+            .map(|t| 0.1 * element_signed_volume(&nodes, t))
             .collect();
         assert!(target.iter().all(|v| *v > 0.0));
         nodes.swap(6, 7);
         let bad: Vec<usize> = (0..tets.len())
-            .filter(|&t| signed_volume(&nodes, &tets[t]) <= 0.0)
+            .filter(|&t| element_signed_volume(&nodes, &tets[t]) <= 0.0)
             .collect();
         assert_eq!(bad.len(), 4, "the four joining elements");
         (nodes, tets, target, bad)
@@ -888,7 +892,7 @@ mod tests {
     fn assert_all_positive(nodes: &[Point], tets: &[[usize; 4]]) {
         for (t, tet) in tets.iter().enumerate() {
             assert!(
-                signed_volume(nodes, tet) > 0.0,
+                element_signed_volume(nodes, tet) > 0.0,
                 "element {t} still inverted"
             );
         }
@@ -981,11 +985,14 @@ mod tests {
         ];
         let mut tets: Vec<[usize; 4]> = faces.iter().map(|f| [6, f[0], f[1], f[2]]).collect();
         for t in tets.iter_mut() {
-            if signed_volume(&nodes, t) < 0.0 {
+            if element_signed_volume(&nodes, t) < 0.0 {
                 t.swap(2, 3);
             }
         }
-        let reference: Vec<f64> = tets.iter().map(|t| signed_volume(&nodes, t)).collect();
+        let reference: Vec<f64> = tets
+            .iter()
+            .map(|t| element_signed_volume(&nodes, t))
+            .collect();
         assert!(reference.iter().all(|v| *v > 0.0));
         let boundary: Vec<usize> = (0..6).collect();
         let opts = UntangleOptions::default();

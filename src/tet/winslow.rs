@@ -16,7 +16,7 @@
 //! mesh needs no rest positions, only rest volumes.
 
 use super::elastic::cofactor;
-use crate::geometry::tet_mesh::tet_signed_volume;
+use crate::geometry::tet_mesh::element_signed_volume;
 use crate::geometry::{Point, Vec3};
 use nalgebra::Matrix3;
 
@@ -163,10 +163,9 @@ pub fn untangle_winslow(
         free: free.to_vec(),
     };
     let positive = |nodes: &[Point]| {
-        p.elems.iter().all(|&t| {
-            let [a, b, c, d] = tets[t].map(|i| nodes[i]);
-            tet_signed_volume(&a, &b, &c, &d) > 0.0
-        })
+        p.elems
+            .iter()
+            .all(|&t| element_signed_volume(nodes, &tets[t]) > 0.0)
     };
     let already = positive(nodes);
     if free.is_empty() || already {
@@ -336,11 +335,6 @@ mod tests {
         (nodes, tets, interior)
     }
 
-    fn volume(nodes: &[Point], t: &[usize; 4]) -> f64 {
-        let [a, b, c, d] = t.map(|v| nodes[v]);
-        tet_signed_volume(&a, &b, &c, &d)
-    }
-
     /// The energy's gradient against central differences, on a mesh with an inverted element.
     #[test]
     fn gradient_matches_differences() {
@@ -392,11 +386,14 @@ mod tests {
     fn scrambled_interior_of_a_cube_is_untangled() {
         let (mut nodes, tets, interior) = scrambled_cube(7);
         let reference = vec![1.0 / 6.0; tets.len()];
-        let inverted = tets.iter().filter(|t| volume(&nodes, t) <= 0.0).count();
+        let inverted = tets
+            .iter()
+            .filter(|t| element_signed_volume(&nodes, t) <= 0.0)
+            .count();
         assert!(inverted >= 10, "the scramble inverts elements ({inverted})");
         let before = nodes.clone();
         assert!(untangle_winslow(&mut nodes, &tets, &interior, &reference));
-        assert!(tets.iter().all(|t| volume(&nodes, t) > 0.0));
+        assert!(tets.iter().all(|t| element_signed_volume(&nodes, t) > 0.0));
         for v in 0..nodes.len() {
             if !interior.contains(&v) {
                 assert_eq!(nodes[v], before[v]);
