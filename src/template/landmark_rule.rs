@@ -27,6 +27,12 @@ use std::collections::BTreeMap;
 /// subdivided template (median edge about 1.6 mm), thin enough to stay at the joint.
 pub(crate) const SLAB_HALF_MM: f64 = 1.5;
 
+/// Where a nail marker sits along the distal segment, as a share of the way from the distal
+/// joint's centre to the fingertip's apex: the middle of the nail plate, which covers the
+/// distal half to two thirds of the segment's back and ends a few millimetres short of the
+/// apex (README, "The template hand").
+pub(crate) const NAIL_FRACTION: f64 = 0.5;
+
 /// First intersection of the ray `origin + t·dir` (t > 0) with the mesh (Möller & Trumbore
 /// 1997); returns the face and the hit point.
 pub fn ray_hit(mesh: &TriMesh, origin: &Point, dir: &Vec3) -> Option<(usize, Point)> {
@@ -140,10 +146,16 @@ pub fn derive_hand_spec(
         let origin = sk.centre(mcp) + (base - sk.centre(mcp)) * t;
         put(name, ray_vertex(mesh, &origin, &palm_dorsal))?;
     }
-    // Nails: 60 % along the distal link, over its dorsal side.
+    // Nails: the middle of the nail plate, over the dorsal side of the distal segment at
+    // NAIL_FRACTION of the way from the distal joint's centre to where the phalanx's long axis
+    // leaves the skin. The skeleton's tip is no measure of that segment: a template's tip joint
+    // may stand anywhere inside the pulp (the generic hand's about halfway to the apex).
     for f in Finger::ALL {
         let dj = f.joints()[2];
-        let origin = sk.centre(dj) + (sk.tips[f as usize] - sk.centre(dj)) * 0.6;
+        let c = sk.centre(dj);
+        let (_, apex) = ray_hit(mesh, &c, &(sk.tips[f as usize] - c).normalize())
+            .ok_or_else(|| err(&format!("{} (the fingertip's apex)", f.nail_marker())))?;
+        let origin = c + (apex - c) * NAIL_FRACTION;
         put(
             f.nail_marker(),
             ray_vertex(mesh, &origin, &sk.joint(dj).y()),

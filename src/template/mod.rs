@@ -218,6 +218,19 @@ mod tests {
                     off_line < 1.5,
                     "{side} {f:?}: {off_line:.2} mm off the bone's line"
                 );
+                // Nail markers over the middle of the nail plate: on the back of the distal
+                // segment, 40-60 % of the way from the joint to the apex (the plate covers the
+                // distal half to two thirds of the segment's back), not over the joint.
+                let nail = v(f.nail_marker()) - c;
+                let along = nail.dot(&bone) / tip.dot(&bone);
+                assert!(
+                    (0.4..0.6).contains(&along),
+                    "{side} {f:?}: nail {along:.2} of the way to the apex"
+                );
+                assert!(
+                    nail.dot(&sk.joint(j).y()) > 0.0,
+                    "{side} {f:?}: nail palmar"
+                );
             }
             // Radial landmarks lie radially of ulnar ones.
             let radial = sk.centre(Joint::IMcp) - sk.centre(Joint::LMcp);
