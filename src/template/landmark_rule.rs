@@ -67,10 +67,18 @@ pub fn ray_hit(mesh: &TriMesh, origin: &Point, dir: &Vec3) -> Option<(usize, Poi
 /// The landmark vertex of a dorsal ray (see the module doc).
 pub(crate) fn ray_vertex(mesh: &TriMesh, origin: &Point, dir: &Vec3) -> Option<usize> {
     let (f, hit) = ray_hit(mesh, origin, &dir.normalize())?;
-    mesh.faces[f].into_iter().min_by(|&a, &b| {
-        (mesh.vertices[a] - hit)
-            .norm()
-            .total_cmp(&(mesh.vertices[b] - hit).norm())
+    Some(nearest_corner(mesh, f, &hit))
+}
+
+/// The corner of face `f` nearest to `p`.
+fn nearest_corner(mesh: &TriMesh, f: usize, p: &Point) -> usize {
+    let [a, b, c] = mesh.faces[f];
+    [b, c].into_iter().fold(a, |best, v| {
+        if (mesh.vertices[v] - p).norm() < (mesh.vertices[best] - p).norm() {
+            v
+        } else {
+            best
+        }
     })
 }
 
@@ -146,28 +154,22 @@ pub fn derive_hand_spec(
         let origin = sk.centre(mcp) + (base - sk.centre(mcp)) * t;
         put(name, ray_vertex(mesh, &origin, &palm_dorsal))?;
     }
-    // Nails: the middle of the nail plate, over the dorsal side of the distal segment at
-    // NAIL_FRACTION of the way from the distal joint's centre to where the phalanx's long axis
-    // leaves the skin. The skeleton's tip is no measure of that segment: a template's tip joint
-    // may stand anywhere inside the pulp (the generic hand's about halfway to the apex).
+    // Per digit, where the distal phalanx's long axis, from the distal joint's centre through
+    // the skeleton's tip, leaves the skin: the optional fingertip marker's place, and the far
+    // end of the segment a nail marker is placed along. The nail: the middle of the nail plate,
+    // over the dorsal side at NAIL_FRACTION of the way from the joint to that apex. The
+    // skeleton's tip is no measure of the segment: a template's tip joint may stand anywhere
+    // inside the pulp (the generic hand's about halfway to the apex).
     for f in Finger::ALL {
         let dj = f.joints()[2];
         let c = sk.centre(dj);
-        let (_, apex) = ray_hit(mesh, &c, &(sk.tips[f as usize] - c).normalize())
-            .ok_or_else(|| err(&format!("{} (the fingertip's apex)", f.nail_marker())))?;
+        let (face, apex) = ray_hit(mesh, &c, &(sk.tips[f as usize] - c).normalize())
+            .ok_or_else(|| err(f.tip_marker()))?;
+        put(f.tip_marker(), Some(nearest_corner(mesh, face, &apex)))?;
         let origin = c + (apex - c) * NAIL_FRACTION;
         put(
             f.nail_marker(),
             ray_vertex(mesh, &origin, &sk.joint(dj).y()),
-        )?;
-    }
-    // Fingertips (optional markers): where the distal phalanx's long axis, from the distal
-    // joint's centre through the bone's end, leaves the skin.
-    for f in Finger::ALL {
-        let c = sk.centre(f.joints()[2]);
-        put(
-            f.tip_marker(),
-            ray_vertex(mesh, &c, &(sk.tips[f as usize] - c)),
         )?;
     }
     // Two markers on the thumb metacarpal, at 1/3 and 2/3 of it, dorsal.
