@@ -72,9 +72,10 @@ pub(crate) fn ray_vertex(mesh: &TriMesh, origin: &Point, dir: &Vec3) -> Option<u
 
 /// The corner of face `f` nearest to `p`.
 fn nearest_corner(mesh: &TriMesh, f: usize, p: &Point) -> usize {
+    let distance = |v: usize| (mesh.vertices[v] - p).norm();
     let [a, b, c] = mesh.faces[f];
     [b, c].into_iter().fold(a, |best, v| {
-        if (mesh.vertices[v] - p).norm() < (mesh.vertices[best] - p).norm() {
+        if distance(v) < distance(best) {
             v
         } else {
             best
