@@ -497,7 +497,7 @@ impl VolumeRig {
         let rest_guard: Vec<Vec3> = (0..rest.n_faces()).map(|f| rest.face_cross(f)).collect();
         let guard = bone_carried_normals(rest, &dominant_links(&hand.weights), &rotations);
         let topology = self.skin_topology.get_or_init(|| rest.topology());
-        unfold_skin(rest, &rest_guard, skin, &guard, topology, UNFOLD_PASSES)
+        unfold_skin(rest, &rest_guard, skin, &guard, topology, UNFOLD_PASSES, 1)
     }
 
     /// Skin and tet nodes skinned by DQS and, if `correct`, moved by the bulge field that gives

@@ -601,7 +601,9 @@ const FOLD_AREA_RATIO: f64 = 0.25;
 /// The displacement that moves every vertex of `mesh` (whose [`Topology`] is `topology`) by
 /// `offsets[i]` along its unit normal,
 /// relaxed where it would fold the surface, and the number of faces still folded after
-/// `max_passes` relaxations. `guard` holds, per face, a direction its normal must keep facing
+/// `max_passes` relaxations over a fixed neighbourhood (the folded faces' vertices and one
+/// ring: the field is smoothed only where it folds, and what it leaves turned over the skin's
+/// own unfolding relaxes, [`super::unfold::unfold_skin`]). `guard` holds, per face, a direction its normal must keep facing
 /// (the template's face carried by its bone); a face already turned away before is left to
 /// the fit's own fold check.
 ///
@@ -628,7 +630,7 @@ pub fn fold_free_displacement(
             || b.norm() < FOLD_AREA_RATIO * a.norm()
             || (g.dot(&a) > 0.0 && g.dot(&b) <= 0.0)
     };
-    let left = relax_folds(mesh, topology, &mut d, folded, max_passes);
+    let left = relax_folds(mesh, topology, &mut d, folded, max_passes, 1);
     (d, left)
 }
 
