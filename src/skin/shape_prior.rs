@@ -599,13 +599,12 @@ const FOLD_COS: f64 = 0.5;
 const FOLD_AREA_RATIO: f64 = 0.25;
 
 /// The displacement that moves every vertex of `mesh` (whose [`Topology`] is `topology`) by
-/// `offsets[i]` along its unit normal,
-/// relaxed where it would fold the surface, and the number of faces still folded after
-/// `max_passes` relaxations over a fixed neighbourhood (the folded faces' vertices and one
-/// ring: the field is smoothed only where it folds, and what it leaves turned over the skin's
-/// own unfolding relaxes, [`super::unfold::unfold_skin`]). `guard` holds, per face, a direction its normal must keep facing
-/// (the template's face carried by its bone); a face already turned away before is left to
-/// the fit's own fold check.
+/// `offsets[i]` along its unit normal, relaxed where it would fold the surface, and the number
+/// of faces still folded after `max_passes` relaxations over a fixed neighbourhood (the folded
+/// faces' vertices and one ring: the field is smoothed only where it folds, and what it leaves
+/// turned over the skin's own unfolding relaxes, [`super::unfold::unfold_skin`]). `guard`
+/// holds, per face, a direction its normal must keep facing (the template's face carried by
+/// its bone); a face already turned away before is left to the fit's own fold check.
 ///
 /// A normal offset folds a surface wherever it exceeds the local radius of curvature (an
 /// inward offset on a ridge, an outward one in a crease): the offset surface of a ridge 3 mm
