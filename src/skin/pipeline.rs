@@ -87,6 +87,10 @@ pub(crate) const CALIPER_TOLERANCE_MM: f64 = 0.05;
 /// Default share of the caliper's miss corrected per round ([`SkinOptions::caliper_gain`]).
 pub(crate) const CALIPER_GAIN: f64 = 0.7;
 
+/// How much farther than the warning level (or the fit before the rounds) a caliper round may
+/// leave its worst marker and still be kept, mm.
+pub const ROUND_MARKER_SLACK_MM: f64 = 1.0;
+
 /// Default finger slack of the caliper rounds, mm ([`SkinOptions::finger_caliper_slack_mm`]).
 pub const FINGER_CALIPER_SLACK_MM: f64 = 1.0;
 
@@ -274,7 +278,7 @@ pub struct SkinFit {
 /// A landmark whose marker stands further than this from its offset off the written skin
 /// ([`marker_standoffs`]) is warned, mm: past a marker's own placement error and what the
 /// simplified fit leaves on the fine skin (the README gives the spread this was chosen on).
-pub(crate) const LANDMARK_WARN_MM: f64 = 1.5;
+pub const LANDMARK_WARN_MM: f64 = 1.5;
 /// Dimensions missed by more than this after the fit are reported, mm.
 pub(crate) const DIMENSION_WARN_MM: f64 = 0.5;
 
@@ -771,6 +775,13 @@ pub fn fit_skin(
     let mut caliper_rounds = 0;
     let mut gains = vec![opts.caliper_gain; targets.len()];
     let mut current = caliper_residuals_mm.clone();
+    // A round may not buy its calipers with the markers: where a caliper's section does not
+    // follow its pair (the pair no longer spans it), the rounds shorten the pair without end
+    // and pull the skin off its markers (a procedural wrist's markers 6-10 mm off). A round is
+    // kept only while its worst marker stays within [`ROUND_MARKER_SLACK_MM`] of the warning
+    // level, or of the fit before the rounds where that left one farther off (a noisy
+    // capture's rounds move markers 2-2.6 mm, and keep them).
+    let marker_limit = worst(&high).max(LANDMARK_WARN_MM) + ROUND_MARKER_SLACK_MM;
     for round in 1..=opts.caliper_rounds {
         if current
             .values()
@@ -799,7 +810,14 @@ pub fn fit_skin(
         // The best round is kept, not the last. A round whose skin a caliper can no longer
         // measure (its section broke) is not better for the misses it no longer reports.
         let measures_as_many = current.len() >= caliper_residuals_mm.len();
-        if measures_as_many && score(&current) < score(&caliper_residuals_mm) {
+        let keeps_markers = worst(&h) <= marker_limit;
+        if !keeps_markers {
+            log::debug!(
+                "skin: caliper round {round} left a marker {:.1} mm off its offset; not kept",
+                worst(&h)
+            );
+        }
+        if measures_as_many && keeps_markers && score(&current) < score(&caliper_residuals_mm) {
             (fit, low, high, unfolded_faces) = (f, l, h, u);
             section = round_section;
             unread = round_unread;
