@@ -948,10 +948,10 @@ fn view_page_holds_the_grasp(out: &Path, r: &serde_json::Value) {
 }
 
 /// A caliper round may not buy its calipers with the markers: on this procedural left hand
-/// (varied posture, typical capture, 20-s trials) the rounds kept shortening pairs whose calipers did not follow
-/// them, and the last round left the wrist's markers 6.3 mm off their offset from the skin
-/// (sections unscaled, so the skin written is the kept round's). The rounds still run, and the
-/// kept round's markers stand within the warning level and its slack.
+/// (varied posture, typical capture, 20-s trials) the rounds kept shortening pairs whose
+/// calipers did not follow them, and the last round left the wrist's markers 6.3 mm off their
+/// offset from the skin (sections unscaled, so the skin written is the kept round's). The rounds
+/// still run, and the kept round's markers stand within the warning level and its slack.
 #[test]
 fn caliper_rounds_keep_the_markers_where_they_stand() {
     let dir = tempfile::tempdir().unwrap();

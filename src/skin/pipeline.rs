@@ -623,9 +623,7 @@ pub fn fit_skin(
             }
             unfolded = folded;
         }
-        for (v, &k) in low.vertices.iter_mut().zip(&simplified.kept) {
-            *v += high.vertices[k] - before[k];
-        }
+        carry_to_low(&mut low, &simplified.kept, &high, &before);
         Ok((fit, low, high, unfolded))
     };
     // A fit that ends with a landmark's vertex passed through its marker
@@ -810,11 +808,12 @@ pub fn fit_skin(
         // The best round is kept, not the last. A round whose skin a caliper can no longer
         // measure (its section broke) is not better for the misses it no longer reports.
         let measures_as_many = current.len() >= caliper_residuals_mm.len();
-        let keeps_markers = worst(&h) <= marker_limit;
+        let round_worst = worst(&h);
+        let keeps_markers = round_worst <= marker_limit;
         if !keeps_markers {
             log::debug!(
-                "skin: caliper round {round} left a marker {:.1} mm off its offset; not kept",
-                worst(&h)
+                "skin: caliper round {round} left a marker {round_worst:.1} mm off its offset; \
+                 not kept"
             );
         }
         if measures_as_many && keeps_markers && score(&current) < score(&caliper_residuals_mm) {
@@ -876,9 +875,7 @@ pub fn fit_skin(
         let (folded, _) = unfold_fitted(&mut high, topology);
         if folded > 0 {
             unfolded_faces += folded;
-            for (v, &k) in low.vertices.iter_mut().zip(&simplified.kept) {
-                *v += high.vertices[k] - before[k];
-            }
+            carry_to_low(&mut low, &simplified.kept, &high, &before);
             (caliper_residuals_mm, section, unread) = caliper_error(&high, depth);
         }
     }
@@ -1013,6 +1010,14 @@ pub fn marker_standoffs(skin: &TriMesh, markers: &[Point], offset_mm: f64) -> Ve
                 .map_or(f64::INFINITY, |d| d - offset_mm)
         })
         .collect()
+}
+
+/// The low-resolution skin (the fine skin's vertices `kept`) moved by what the fine skin `high`
+/// moved from `before`, so that both skins stay the same surface.
+fn carry_to_low(low: &mut TriMesh, kept: &[usize], high: &TriMesh, before: &[Point]) {
+    for (v, &k) in low.vertices.iter_mut().zip(kept) {
+        *v += high.vertices[k] - before[k];
+    }
 }
 
 /// Joints whose centre constrains the skin: the digits' joints, where skin surrounds the bone
