@@ -808,15 +808,17 @@ pub fn fit_skin(
         // The best round is kept, not the last. A round whose skin a caliper can no longer
         // measure (its section broke) is not better for the misses it no longer reports.
         let measures_as_many = current.len() >= caliper_residuals_mm.len();
+        if !(measures_as_many && score(&current) < score(&caliper_residuals_mm)) {
+            continue;
+        }
+        // Only a round that would be kept has its markers measured (a tree over the fine skin).
         let round_worst = worst(&h);
-        let keeps_markers = round_worst <= marker_limit;
-        if !keeps_markers {
+        if round_worst > marker_limit {
             log::debug!(
                 "skin: caliper round {round} left a marker {round_worst:.1} mm off its offset; \
                  not kept"
             );
-        }
-        if measures_as_many && keeps_markers && score(&current) < score(&caliper_residuals_mm) {
+        } else {
             (fit, low, high, unfolded_faces) = (f, l, h, u);
             section = round_section;
             unread = round_unread;
