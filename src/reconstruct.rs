@@ -65,6 +65,9 @@ pub struct SkinSummary {
     pub centre_weight: f64,
     /// The shape prior used (`null`: none, the template's shape where nothing reaches).
     pub shape_prior: Option<String>,
+    /// The subject's features as a shape prior reads them, by name (an extension:
+    /// `shape-prior` trains on exactly what a fit will read).
+    pub shape_prior_features: BTreeMap<String, f64>,
     /// Whether the fingers' sections were scaled to their calipers
     /// ([`SkinOptions::section_scaling`]).
     pub section_scaling: bool,
@@ -320,6 +323,7 @@ fn skin_summary(skin: &SkinFit, opts: &SkinOptions) -> SkinSummary {
         template_posed: skin.posture.is_some(),
         centre_weight: opts.centre_weight,
         shape_prior: skin.shape_prior.clone(),
+        shape_prior_features: skin.prior_features.clone(),
         section_scaling: opts.section_scaling,
         iterations: skin.iterations,
         converged: skin.converged,

@@ -1553,6 +1553,18 @@ fn the_template_cannot_reach_the_procedural_body() {
         with_prior.mean_mm, surface.mean_mm
     );
     assert!(with_prior.mean_mm < 0.8 * surface.mean_mm);
+    // The features a prior reads are the subject's, not the fit's: the same with the prior as
+    // without (a prior is trained on fits without one), and every one the shipped prior reads.
+    let features = |model: &Path| read_report(model)["skin"]["shape_prior_features"].clone();
+    assert_eq!(features(&model), features(&prior));
+    let shipped = ergohand::skin::shape_prior::ShapePrior::builtin();
+    let recorded = features(&prior);
+    for name in &shipped.features {
+        assert!(
+            recorded[name].as_f64().is_some_and(f64::is_finite),
+            "{name}: {recorded}"
+        );
+    }
     let fist = tmp.path().join("prior-fist.vtk");
     let p = ergohand(&[
         "pose",

@@ -78,13 +78,36 @@ fn prior_sample(dir: &Path, model: &str, forearm: &[(Side, Vec<bool>)]) -> Resul
     let reference = ply::read_ply(&dir.join("reference.ply"), Units::Millimetres)?.mesh;
     let raw = normal_offsets(&skin, &reference);
     let rings = skin.topology().vertex_rings;
-    let static_trial = subject.load_trial(TrialKind::Reference)?;
-    let features = subject_features(
-        &subject.dimensions,
-        &static_trial.mean_positions(&landmark_names()),
-        &link_model_joints(&dir.join(model).join("link_model.json"))?,
-        subject.marker_offset_mm,
-    );
+    let features = match report["skin"]["shape_prior_features"].as_object() {
+        Some(recorded) => recorded
+            .iter()
+            .map(|(name, v)| {
+                v.as_f64().map(|v| (name.clone(), v)).ok_or_else(|| {
+                    Error::input(
+                        &report_path,
+                        format!("skin.shape_prior_features.{name}: not a number"),
+                    )
+                })
+            })
+            .collect::<Result<BTreeMap<String, f64>>>()?,
+        None => {
+            // A model written before the fit recorded its features: read them from the written
+            // link model, whose hinges the skin stage has moved, so they differ a little from
+            // what a fit reads.
+            log::warn!(
+                "{}: no skin.shape_prior_features; the tissue depths are read from \
+                 link_model.json instead (re-run reconstruct for the features a fit reads)",
+                report_path.display()
+            );
+            let static_trial = subject.load_trial(TrialKind::Reference)?;
+            subject_features(
+                &subject.dimensions,
+                &static_trial.mean_positions(&landmark_names()),
+                &link_model_joints(&dir.join(model).join("link_model.json"))?,
+                subject.marker_offset_mm,
+            )
+        }
+    };
     Ok(PriorSample {
         name: subject.name.clone(),
         features,

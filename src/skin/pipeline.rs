@@ -266,6 +266,9 @@ pub struct SkinFit {
     pub unfolded_faces: usize,
     /// The shape prior the fit added ([`ShapePrior::summary`]), `None` without one.
     pub shape_prior: Option<String>,
+    /// The subject's features as a shape prior reads them ([`subject_features`], from the link
+    /// model before the skin stage), with or without a prior.
+    pub prior_features: BTreeMap<String, f64>,
     /// Whether the iterated fit converged.
     pub converged: bool,
     /// Linearised solves of the fit.
@@ -414,32 +417,39 @@ pub fn fit_skin(
         None => (aligned.clone(), aligned_skeleton.clone()),
     };
 
-    // The shape prior's field for this subject's dimensions, per template vertex.
+    // The features a shape prior reads of this subject, from the link model as the skin stage
+    // receives it (its hinges' levels later move to the fitted skin's sections, so features
+    // read from the written link_model.json would depend on the fit). Computed without a prior
+    // too: a prior is trained on subjects fitted without one, and reads these from report.json.
+    let prior_features = {
+        let joints: BTreeMap<String, JointLine> = full_link_model
+            .map(|m| {
+                m.joints
+                    .iter()
+                    .map(|e| {
+                        let line = JointLine {
+                            centre: e.centre,
+                            axis: e.axis,
+                        };
+                        (e.joint.name().to_string(), line)
+                    })
+                    .collect()
+            })
+            .unwrap_or_default();
+        subject_features(dimensions, &markers, &joints, marker_offset_mm)
+    };
+    // The shape prior's field for this subject's features, per template vertex.
     let prior_offsets: Option<Vec<f64>> = match &prior {
         Some(p) => {
-            let joints: BTreeMap<String, JointLine> = full_link_model
-                .map(|m| {
-                    m.joints
-                        .iter()
-                        .map(|e| {
-                            let line = JointLine {
-                                centre: e.centre,
-                                axis: e.axis,
-                            };
-                            (e.joint.name().to_string(), line)
-                        })
-                        .collect()
-                })
-                .unwrap_or_default();
-            let features = subject_features(dimensions, &markers, &joints, marker_offset_mm);
+            let features = &prior_features;
             if let Some((n, z)) = p
-                .standard_scores(&features)
+                .standard_scores(features)
                 .into_iter()
                 .max_by(|a, b| a.1.abs().total_cmp(&b.1.abs()))
             {
                 log::debug!("skin: the shape prior's farthest feature: {n} at {z:+.1} SD");
             }
-            let outside = p.outside(&features, FEATURE_LIMIT_SD);
+            let outside = p.outside(features, FEATURE_LIMIT_SD);
             if !outside.is_empty() {
                 let named: Vec<String> = outside
                     .iter()
@@ -452,7 +462,7 @@ pub fn fit_skin(
                     named.join(", ")
                 ));
             }
-            Some(p.predict(&features))
+            Some(p.predict(features))
         }
         None => None,
     };
@@ -958,6 +968,7 @@ pub fn fit_skin(
         unfolded_faces,
         degenerate_faces,
         shape_prior: prior.as_ref().map(|p| p.summary()),
+        prior_features,
         converged: fit.converged,
         iterations: fit.iterations,
         warnings,

@@ -183,8 +183,10 @@ pub struct JointLine {
 
 /// The features a prior may read of a subject, by name: `ln(value)` of each caliper dimension
 /// (its `subject.toml` key), and `depth:JOINT`, the logarithm of the dorsal tissue depth at each
-/// joint's landmark (its marker's distance from the joint's centre, or from a hinge's axis, which
-/// section 3.6 leaves in place, less the marker's offset; at least 1 mm).
+/// joint's landmark (its marker's distance from the joint's centre, or from a hinge's axis, less
+/// the marker's offset; at least 1 mm). `joints` are the link model the skin stage receives: the
+/// one it writes has its hinges moved onto the fitted skin, so depths read there depend on the
+/// fit.
 pub fn subject_features(
     dimensions: &BTreeMap<Dimension, f64>,
     markers: &BTreeMap<String, Point>,
