@@ -158,7 +158,8 @@ pub enum Posture {
     /// The template's own posture.
     Template,
     /// Fingers spread or closed by 5-15°, flexed 0-20° at MCP and PIP, thumb 10-20° higher or
-    /// lower: how seated subjects really differ.
+    /// lower: how seated subjects really differ. Drawn again where two neighbouring fingers
+    /// would pass through each other.
     Varied,
 }
 
@@ -403,6 +404,127 @@ fn draw_posture(rng: &mut Rng, posture: Posture) -> Pose {
     pose
 }
 
+/// How close, mm, the bones of two neighbouring fingers may come in a drawn reference posture.
+/// A finger's bone runs near the middle of its cross-section, so two fingers whose skins do not
+/// overlap keep their bones at least the sum of their half-breadths apart. The slenderest pair
+/// either body makes, ring and little, is about 15 and 13 mm broad at the PIP (the template
+/// body; the procedural body's 5th percentile woman has 15.8 and 14.1 mm), so about 14 mm. 12 mm
+/// leaves a millimetre a side for the soft tissue that yields where adducted fingers press
+/// together (the template's own posture keeps 18 mm, the procedural body's own rule 15 mm), and
+/// still refuses every posture whose skins pass through each other.
+const FINGER_BONE_CLEARANCE_MM: f64 = 12.0;
+
+/// How many times a varied posture whose fingers cross is drawn again before giving up.
+const MAX_POSTURE_REDRAWS: usize = 20;
+
+/// The closest distance, mm, between the bones of two neighbouring fingers (index-middle,
+/// middle-ring, ring-little) of `sk`, and which two: each finger's bone is the polyline MCP ->
+/// PIP -> DIP -> the distal link's tip.
+fn closest_neighbouring_fingers(sk: &Skeleton) -> (f64, Finger, Finger) {
+    let bone = |f: Finger| -> [Point; 4] {
+        let [mcp, pip, dip] = f.joints().map(|j| sk.centre(j));
+        [mcp, pip, dip, sk.tips[f as usize]]
+    };
+    Finger::ALL[1..]
+        .windows(2)
+        .map(|pair| {
+            let (a, b) = (bone(pair[0]), bone(pair[1]));
+            let d = a
+                .windows(2)
+                .flat_map(|sa| b.windows(2).map(move |sb| segment_segment_distance(sa, sb)))
+                .fold(f64::INFINITY, f64::min);
+            (d, pair[0], pair[1])
+        })
+        .fold((f64::INFINITY, Finger::Index, Finger::Middle), |best, x| {
+            if x.0 < best.0 {
+                x
+            } else {
+                best
+            }
+        })
+}
+
+/// The closest distance between the segments `a[0]-a[1]` and `b[0]-b[1]`.
+fn segment_segment_distance(a: &[Point], b: &[Point]) -> f64 {
+    let (d1, d2, r) = (a[1] - a[0], b[1] - b[0], a[0] - b[0]);
+    let (aa, ee, f) = (d1.norm_squared(), d2.norm_squared(), d2.dot(&r));
+    let eps = 1e-12;
+    let (s, t) = if aa <= eps && ee <= eps {
+        (0.0, 0.0)
+    } else if aa <= eps {
+        (0.0, (f / ee).clamp(0.0, 1.0))
+    } else {
+        let c = d1.dot(&r);
+        if ee <= eps {
+            ((-c / aa).clamp(0.0, 1.0), 0.0)
+        } else {
+            let bb = d1.dot(&d2);
+            let denom = aa * ee - bb * bb;
+            let mut s = if denom > eps {
+                ((bb * f - c * ee) / denom).clamp(0.0, 1.0)
+            } else {
+                0.0
+            };
+            let mut t = (bb * s + f) / ee;
+            if t < 0.0 {
+                t = 0.0;
+                s = (-c / aa).clamp(0.0, 1.0);
+            } else if t > 1.0 {
+                t = 1.0;
+                s = ((bb - c) / aa).clamp(0.0, 1.0);
+            }
+            (s, t)
+        }
+    };
+    ((a[0] + d1 * s) - (b[0] + d2 * t)).norm()
+}
+
+/// The true hand of `opts` in its reference posture. A varied posture spreads or closes each
+/// finger on its own, so two neighbouring fingers can converge until their bones nearly meet and
+/// their skins pass through each other, which no hand can do (and the calipers would then measure
+/// a finger's breadth through its neighbour). Such a posture is drawn again, from streams of its
+/// own (`posture-redraw-1`, `-2`, ...), so every hand whose fingers stayed apart is exactly as
+/// the first draw made it.
+fn reference_body(opts: &SynthOptions, template: &TemplateHand, root: &Rng) -> Result<TrueHand> {
+    let build = |posture: Pose| match opts.body {
+        Body::Template => true_hand::template_body(template, root, posture),
+        Body::Procedural => {
+            procedural::procedural_body(opts.hand, root, posture, opts.percentile_hand)
+        }
+    };
+    let mut body = build(draw_posture(&mut root.fork("posture"), opts.posture))?;
+    if opts.posture == Posture::Template {
+        return Ok(body);
+    }
+    let mut redraws = 0;
+    loop {
+        let (gap, a, b) = closest_neighbouring_fingers(&body.skeleton);
+        if gap >= FINGER_BONE_CLEARANCE_MM {
+            return Ok(body);
+        }
+        if redraws == MAX_POSTURE_REDRAWS {
+            return Err(Error::invalid(format!(
+                "seed {}: no varied posture in {MAX_POSTURE_REDRAWS} redraws keeps neighbouring \
+                 fingers' bones {FINGER_BONE_CLEARANCE_MM} mm apart (the last brings the {} and \
+                 {} fingers to {gap:.1} mm)",
+                opts.seed,
+                a.trial_name(),
+                b.trial_name()
+            )));
+        }
+        redraws += 1;
+        log::debug!(
+            "synth seed {}: the {} and {} fingers' bones are {gap:.1} mm apart (under \
+             {FINGER_BONE_CLEARANCE_MM} mm): posture drawn again ({redraws})",
+            opts.seed,
+            a.trial_name(),
+            b.trial_name()
+        );
+        let stream = format!("posture-redraw-{redraws}");
+        body = build(draw_posture(&mut root.fork(&stream), opts.posture))?;
+    }
+}
+
 /// Simulate a subject with its preset's error model.
 pub fn simulate(opts: &SynthOptions) -> Result<SyntheticSubject> {
     simulate_with(opts, &opts.preset.error_model())
@@ -437,13 +559,7 @@ pub fn simulate_with(opts: &SynthOptions, err: &ErrorModel) -> Result<SyntheticS
     let template: TemplateHand = load_template(opts.hand)?;
 
     // 1. The true hand in its reference posture.
-    let posture = draw_posture(&mut root.fork("posture"), opts.posture);
-    let body = match opts.body {
-        Body::Template => true_hand::template_body(&template, &root, posture)?,
-        Body::Procedural => {
-            procedural::procedural_body(opts.hand, &root, posture, opts.percentile_hand)?
-        }
-    };
+    let body = reference_body(opts, &template, &root)?;
 
     // 2. Into the lab frame.
     let mut lab_rng = root.fork("lab");
@@ -1553,6 +1669,119 @@ mod tests {
                 "{}",
                 d.name
             );
+        }
+    }
+
+    /// A varied subject with the posture's draws of `seed`, the train_shape_prior.sh way: the
+    /// template body (even seeds), the left hand when `seed / 2` is odd.
+    fn varied(seed: u64) -> SynthOptions {
+        SynthOptions {
+            hand: if (seed / 2) % 2 == 1 {
+                Side::Left
+            } else {
+                Side::Right
+            },
+            posture: Posture::Varied,
+            ..short(seed, Preset::Typical)
+        }
+    }
+
+    #[test]
+    fn a_varied_posture_whose_fingers_cross_is_drawn_again() {
+        // Seed 1026's first draw closes the middle and ring fingers onto each other: their bones
+        // come within 2 mm, and the calipers measured a finger's breadth through its neighbour.
+        let opts = varied(1026);
+        let root = Rng::new(opts.seed);
+        let template = load_template(opts.hand).unwrap();
+        let first = draw_posture(&mut root.fork("posture"), opts.posture);
+        let crossed = true_hand::template_body(&template, &root, first.clone()).unwrap();
+        let (gap, _, _) = closest_neighbouring_fingers(&crossed.skeleton);
+        assert!(
+            gap < FINGER_BONE_CLEARANCE_MM,
+            "the first draw is apart: {gap} mm"
+        );
+
+        let s = simulate(&opts).unwrap();
+        let (gap, a, b) = closest_neighbouring_fingers(&s.true_skeleton);
+        assert!(
+            gap >= FINGER_BONE_CLEARANCE_MM,
+            "{a:?}-{b:?} bones {gap} mm apart"
+        );
+        assert_ne!(
+            s.truth.reference_posture_deg["M_MCP"],
+            first.angles[Joint::MMcp.index()].map(|a| a.to_degrees())
+        );
+        for d in Dimension::all() {
+            if !matches!(
+                d,
+                Dimension::BreadthProximal(_) | Dimension::BreadthDistal(_)
+            ) {
+                continue;
+            }
+            let (lo, hi) = d.plausible_range_mm();
+            assert_eq!(lo, 8.0, "the toolkit's floor for a finger breadth");
+            let (truth, measured) = (s.truth.dimensions[&d.name()], s.subject.dimensions[&d]);
+            for v in [truth, measured] {
+                assert!((lo..=hi).contains(&v), "{d}: {v} mm");
+            }
+        }
+    }
+
+    #[test]
+    fn segments_are_as_far_apart_as_their_closest_points() {
+        let p = |x: f64, y: f64, z: f64| Point::new(x, y, z);
+        let d = |a: [Point; 2], b: [Point; 2]| segment_segment_distance(&a, &b);
+        // Skew, closest points inside both.
+        let skew = d(
+            [p(-1.0, 0.0, 0.0), p(1.0, 0.0, 0.0)],
+            [p(0.0, -1.0, 3.0), p(0.0, 1.0, 3.0)],
+        );
+        assert!((skew - 3.0).abs() < 1e-12, "{skew}");
+        // Crossing.
+        let crossing = d(
+            [p(-1.0, 0.0, 0.0), p(1.0, 0.0, 0.0)],
+            [p(0.0, -1.0, 0.0), p(0.0, 1.0, 0.0)],
+        );
+        assert!(crossing.abs() < 1e-12, "{crossing}");
+        // Parallel, overlapping.
+        let parallel = d(
+            [p(0.0, 0.0, 0.0), p(2.0, 0.0, 0.0)],
+            [p(1.0, 2.0, 0.0), p(3.0, 2.0, 0.0)],
+        );
+        assert!((parallel - 2.0).abs() < 1e-12, "{parallel}");
+        // Beyond an end: the end to the other segment.
+        let beyond = d(
+            [p(0.0, 0.0, 0.0), p(1.0, 0.0, 0.0)],
+            [p(4.0, -1.0, 0.0), p(4.0, 1.0, 0.0)],
+        );
+        assert!((beyond - 3.0).abs() < 1e-12, "{beyond}");
+        // A point.
+        let point = d(
+            [p(0.0, 5.0, 0.0), p(0.0, 5.0, 0.0)],
+            [p(-1.0, 0.0, 0.0), p(1.0, 0.0, 0.0)],
+        );
+        assert!((point - 5.0).abs() < 1e-12, "{point}");
+    }
+
+    #[test]
+    fn a_posture_whose_fingers_stay_apart_is_the_first_draw() {
+        // Seed 1008 varied (template body, right hand) keeps its fingers apart; seed 1026 in the
+        // template's posture too. Both keep the posture the first draw gave.
+        for opts in [
+            varied(1008),
+            SynthOptions {
+                posture: Posture::Template,
+                ..varied(1026)
+            },
+        ] {
+            let root = Rng::new(opts.seed);
+            let template = load_template(opts.hand).unwrap();
+            let first = draw_posture(&mut root.fork("posture"), opts.posture);
+            let body = reference_body(&opts, &template, &root).unwrap();
+            assert_eq!(body.posture, first, "seed {} {:?}", opts.seed, opts.posture);
+            let built = true_hand::template_body(&template, &root, first).unwrap();
+            assert_eq!(body.skin, built.skin);
+            assert_eq!(body.skeleton, built.skeleton);
         }
     }
 
