@@ -7,15 +7,15 @@
 //! of four subjects, so this is the pose meeting the individual, not a reconstruction error.
 //! A real hand's fingers press against each other and give way; here the angles give way.
 //!
-//! The method is a damped least-norm inverse kinematics on contact constraints, the same
-//! Jacobian-transpose step as in constraint-based posing (e.g. Buss 2004, "Introduction to
-//! inverse kinematics with Jacobian transpose, pseudoinverse and damped least squares
-//! methods", section 4): for each pair of digits whose deepest penetrating vertex `p` lies
-//! behind the other digit's surface point `q` (outward normal `n`), the separation
-//! `s = (p − q)·n` must reach `−tolerance / 2`; `p` and `q` are carried rigidly by their links,
-//! `∂s/∂θ_k` is taken by finite differences of the forward kinematics over the two digits'
-//! joint angles, and the weighted least-norm step `Δθ = W Jᵀ r / (J W Jᵀ)` is applied (each
-//! angle by at most 3° per step), then the pose is clamped to the anatomical limits. The
+//! The method is a damped least-norm inverse kinematics on contact constraints, as in
+//! constraint-based posing (Buss 2004, "Introduction to inverse kinematics with Jacobian
+//! transpose, pseudoinverse and damped least squares methods", section 5): for each pair of
+//! digits whose deepest penetrating vertex `p` lies behind the other digit's surface point `q`
+//! (outward normal `n`), the separation `s = (p − q)·n` must reach `−tolerance / 2`; `p` and
+//! `q` are carried rigidly by their links, `∂s/∂θ_k` is taken by finite differences of the
+//! forward kinematics over the two digits' joint angles, and the pairs' rows are solved
+//! together for the weighted damped least-norm step `Δθ = W Jᵀ (J W Jᵀ + λ I)⁻¹ r` (each angle
+//! by at most 3° per step), then the pose is clamped to the anatomical limits. The
 //! weights keep the pose's intent: a finger makes room by spreading at its MCP (weight 1)
 //! rather than by unbending (0.2); the thumb moves at all its joints.
 //!
@@ -111,6 +111,51 @@ fn dof_weight(j: Joint, dof: usize) -> f64 {
     }
 }
 
+/// Angles of a pose, three per joint (`3 * joint index + axis`).
+const DOFS: usize = 48;
+
+/// Damping of [`damped_least_norm_step`], relative to the mean diagonal of `J W Jᵀ`: two pairs
+/// that are one contact seen from either digit give two nearly equal rows, which an undamped
+/// solve would meet with a step as large as it is arbitrary.
+const DAMPING: f64 = 0.1;
+
+/// The weighted damped least-norm step `Δθ = W Jᵀ (J W Jᵀ + λ I)⁻¹ r` for the rows
+/// `(∂s/∂θ, r)` of all the pairs at once (Buss 2004, section 5), `W` the [`dof_weight`]s.
+/// Solved together, pairs that share joints (a finger between two neighbours, or one contact
+/// seen from both digits) do not each take the whole correction, as summed single-pair steps
+/// did, which made them overshoot and oscillate.
+fn damped_least_norm_step(rows: &[([f64; DOFS], f64)]) -> [f64; DOFS] {
+    let mut step = [0.0; DOFS];
+    let m = rows.len();
+    if m == 0 {
+        return step;
+    }
+    let w: [f64; DOFS] = std::array::from_fn(|i| dof_weight(Joint::ALL[i / 3], i % 3));
+    let mut a = nalgebra::DMatrix::<f64>::zeros(m, m);
+    for (i, (gi, _)) in rows.iter().enumerate() {
+        for (j, (gj, _)) in rows.iter().enumerate() {
+            a[(i, j)] = (0..DOFS).map(|k| gi[k] * w[k] * gj[k]).sum();
+        }
+    }
+    let mean = a.diagonal().mean();
+    if mean.is_nan() || mean <= 1e-12 {
+        return step;
+    }
+    for i in 0..m {
+        a[(i, i)] += DAMPING * mean;
+    }
+    let r = nalgebra::DVector::from_iterator(m, rows.iter().map(|(_, r)| *r));
+    let Some(y) = a.cholesky().map(|c| c.solve(&r)) else {
+        return step;
+    };
+    for (i, (g, _)) in rows.iter().enumerate() {
+        for k in 0..DOFS {
+            step[k] += w[k] * g[k] * y[i];
+        }
+    }
+    step
+}
+
 /// Change `pose` as little as the weights allow so that no digit of `hand` enters another by
 /// more than `opts.tolerance_mm` when posed with `method` (see the module documentation).
 /// Stops after `opts.max_iterations` rounds even if a contact remains (the result says how
@@ -163,7 +208,9 @@ pub fn resolve_finger_contacts_on<E>(
     while pen.depth_mm > opts.tolerance_mm && iterations < opts.max_iterations {
         iterations += 1;
         let t = link_transforms(&hand.skeleton, &cur);
-        let mut step = [[0.0f64; 3]; 16];
+        // One row per pair still too deep: the separation's gradient over the two digits'
+        // angles and the separation it lacks.
+        let mut rows: Vec<([f64; DOFS], f64)> = Vec::new();
         for (k, &((a, b), depth)) in pen.by_pair.iter().enumerate() {
             if depth <= 0.5 * opts.tolerance_mm {
                 continue;
@@ -176,29 +223,23 @@ pub fn resolve_finger_contacts_on<E>(
             let q_rest = t[lb].inverse() * c.surface_point;
             let sep = |tr: &[nalgebra::Isometry3<f64>]| (tr[la] * p_rest - tr[lb] * q_rest).dot(&n);
             let s0 = sep(&t);
-            let residual = -0.5 * opts.tolerance_mm - s0;
-            let mut grads = Vec::new();
+            let mut g = [0.0; DOFS];
             for digit in [a, b] {
                 for j in digit.joints() {
                     for d in 0..j.dof() {
                         let mut probe = cur.clone();
                         probe.angles[j.index()][d] += DELTA;
-                        let g = (sep(&link_transforms(&hand.skeleton, &probe)) - s0) / DELTA;
-                        grads.push((j, d, g, dof_weight(j, d)));
+                        g[3 * j.index() + d] =
+                            (sep(&link_transforms(&hand.skeleton, &probe)) - s0) / DELTA;
                     }
                 }
             }
-            let norm: f64 = grads.iter().map(|&(_, _, g, w)| w * g * g).sum();
-            if norm < 1e-12 {
-                continue;
-            }
-            for (j, d, g, w) in grads {
-                step[j.index()][d] += w * g * residual / norm;
-            }
+            rows.push((g, -0.5 * opts.tolerance_mm - s0));
         }
-        for (angles, s) in cur.angles.iter_mut().zip(&step) {
-            for (x, ds) in angles.iter_mut().zip(s) {
-                *x += ds.clamp(-MAX_STEP, MAX_STEP);
+        let step = damped_least_norm_step(&rows);
+        for (k, angles) in cur.angles.iter_mut().enumerate() {
+            for (d, x) in angles.iter_mut().enumerate() {
+                *x += step[3 * k + d].clamp(-MAX_STEP, MAX_STEP);
             }
         }
         cur = clamp_pose(&cur).0;

@@ -606,11 +606,12 @@ fn tet_nodes_follow_the_skin() {
 
 /// The fist goal on individual hands. The built-in `fist` is a set of angles; on a
 /// broader or differently built hand the same angles close digits into each other, even on
-/// the *true* hand of a simulated subject (seed 2: the thumb enters the index by about 10 mm;
-/// seed 72: the ring the middle by about 7 mm), so this is not a reconstruction error.
-/// [`resolve_finger_contacts`] brings the true and the reconstructed hands of both subjects
-/// within the 2 mm by changing angles by a few degrees, and leaves a pose without
-/// contacts alone.
+/// the *true* hand of a simulated subject (seeds 2 and 72: the curled index enters the thumb
+/// lying alongside it by about 12 mm; seed 72 also the ring the middle by about 7 mm), so
+/// this is not a reconstruction error. [`resolve_finger_contacts`] brings the true and the
+/// reconstructed hands of both subjects within the 2 mm by changing no angle by more
+/// than 15° (the thumb's MCP at its limit, the index unbends at its MCP), and leaves a pose
+/// without contacts alone.
 #[test]
 fn fist_contacts_resolved_on_individual_hands() {
     let fist = named_pose("fist").unwrap();
@@ -636,7 +637,7 @@ fn fist_contacts_resolved_on_individual_hands() {
                     r.iterations
                 );
                 assert!(r.depth_after_mm <= 2.0, "seed {seed} {who}: {r:?}");
-                assert!(largest <= 12.0, "seed {seed} {who}: {:?}", r.changes_deg);
+                assert!(largest <= 15.0, "seed {seed} {who}: {:?}", r.changes_deg);
                 // The least penetrating pose met is returned: stopping after fewer rounds is
                 // never less deep, and the depth reported is the returned pose's own.
                 let mut previous = r.depth_before_mm;

@@ -1336,8 +1336,9 @@ mod tests {
     /// template's weights by the skeleton's own linear blend) and probed vertex
     /// by vertex against the bottle's mesh at its true pose: every vertex within 1 mm of the
     /// part or inside it counts its rest area for its dominant link. The mesh is the bottle:
-    /// its signed distance agrees with the exact one of the shape there (to half the 2 mm grid
-    /// the mesh is made on, which rounds the shape's edges). Nothing touches
+    /// its signed distance agrees with the exact one of the shape there to the 2 mm grid the
+    /// mesh is made on (the grid rounds the shape's edges: at the cap's rim, where a thumb
+    /// reaching over the top touches, the two differ by more than half of it). Nothing touches
     /// while the hand is 60 mm back in the reach, and the hold has contacts.
     #[test]
     fn truth_contacts_are_the_posed_true_skin_probed_against_the_part() {
@@ -1351,6 +1352,7 @@ mod tests {
         let areas = vertex_areas(&s.true_skin);
         let (mesh, _) = crate::grasp::parts::clean_part(&Part::Bottle.mesh().unwrap());
         let part = PartShape::with_band(mesh, 1.0).unwrap().0;
+        let grid = Part::Bottle.voxel_mm();
         let hold = t.phases.iter().find(|p| p.name == "hold").unwrap();
         let frames = [0, 5, hold.first, (hold.first + hold.last) / 2, hold.last];
         for &fr in &frames {
@@ -1373,7 +1375,8 @@ mod tests {
                 if d <= 1.0 {
                     area[dom[i]] += areas[i];
                     depth[dom[i]] = depth[dom[i]].max(-d);
-                    assert!((Part::Bottle.sdf(&q) - d).abs() < 1.0, "vertex {i}: {d}");
+                    let exact = Part::Bottle.sdf(&q);
+                    assert!((exact - d).abs() < grid, "vertex {i}: {d} against {exact}");
                 }
             }
             for l in Link::ALL {

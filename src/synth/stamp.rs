@@ -9,7 +9,7 @@ use std::path::Path;
 
 /// The simulator's revision. Raise it with every change that alters what [`super::simulate`]
 /// produces for the same options (body, capture model, calipers, scan).
-pub(crate) const REVISION: u32 = 5;
+pub(crate) const REVISION: u32 = 6;
 
 /// The stamp's file name inside a subject folder.
 pub const FILE: &str = "synth-stamp.json";

@@ -10,9 +10,8 @@ use crate::io::Units;
 use crate::skeleton::Skeleton;
 use std::path::Path;
 
-/// The right-hand template GLB, embedded so the toolkit needs no files at run time.
-pub(crate) const RIGHT_GLB: &[u8] = include_bytes!("../../assets/generic-hand/right.glb");
-/// The left-hand template GLB.
+/// The left-hand template GLB, embedded so the toolkit needs no files at run time; the right
+/// hand is its mirror image ([`load_base_hand`]).
 pub(crate) const LEFT_GLB: &[u8] = include_bytes!("../../assets/generic-hand/left.glb");
 
 /// Sparse per-vertex skinning weights: `(link index, weight)` pairs summing to 1.
@@ -98,13 +97,57 @@ pub(crate) fn wrist_split(s: f64) -> f64 {
     (0.5 - s / (2.0 * WRIST_BAND_MM)).clamp(0.0, 1.0)
 }
 
-/// Load the embedded template of `side`.
+/// Load the embedded template of `side`: the left asset, and for the right hand its mirror
+/// image ([`mirror_base_hand`]). The asset's own `right.glb` has the same surface mirrored but
+/// not the same skeleton: its index MCP stands 3.4 mm proximal of the left one's mirror image
+/// (an index proximal phalanx 45.3 mm long beside the middle's 46.9, where hands measure it
+/// about 11 % shorter; the left asset's is 41.9) and its thumb's joint frames are turned, so
+/// the landmark rule put seven landmarks of one hand 2-6 mm from where it put the other's, and
+/// a hand was fitted as another hand than its mirror image.
 pub fn load_base_hand(side: Side) -> Result<BaseHand> {
-    let (bytes, label) = match side {
-        Side::Right => (RIGHT_GLB, "assets/generic-hand/right.glb"),
-        Side::Left => (LEFT_GLB, "assets/generic-hand/left.glb"),
+    let left = base_hand_from_glb(
+        LEFT_GLB,
+        Side::Left,
+        Path::new("assets/generic-hand/left.glb"),
+    )?;
+    match side {
+        Side::Left => Ok(left),
+        Side::Right => mirror_base_hand(&left),
+    }
+}
+
+/// `mesh` mirrored across its frame's sagittal plane (x -> -x), vertex for vertex, its faces
+/// turned over so that they still point outward.
+pub fn mirror_mesh(mesh: &TriMesh) -> TriMesh {
+    mesh.affine_transformed(&nalgebra::Matrix4::new_nonuniform_scaling(&Vec3::new(
+        -1.0, 1.0, 1.0,
+    )))
+}
+
+/// The mirror image of a hand across its frame's sagittal plane (x -> -x): the other hand,
+/// with the same vertices in the same order (vertex `i` of one is vertex `i` of the other, so
+/// that a landmark, a caliper pair or a field per vertex, such as a shape prior's, means the
+/// same on both), faces turned over to stay outward, the same weights, and a skeleton built
+/// from the mirrored joint centres, tips and dorsal directions (x = y × z stays right-handed,
+/// as every hand's frames are).
+pub fn mirror_base_hand(hand: &BaseHand) -> Result<BaseHand> {
+    let m = |p: &Point| Point::new(-p.x, p.y, p.z);
+    let mv = |v: &Vec3| Vec3::new(-v.x, v.y, v.z);
+    let side = match hand.side {
+        Side::Left => Side::Right,
+        Side::Right => Side::Left,
     };
-    base_hand_from_glb(bytes, side, Path::new(label))
+    let sk = &hand.skeleton;
+    let centres: [Point; 16] = std::array::from_fn(|i| m(&sk.joints[i].centre));
+    let dorsal: [Vec3; 16] = std::array::from_fn(|i| mv(&sk.joints[i].y()));
+    let skeleton = Skeleton::from_centres(side, &centres, sk.tips.map(|t| m(&t)), &dorsal)?;
+    Ok(BaseHand {
+        side,
+        mesh: mirror_mesh(&hand.mesh),
+        weights: hand.weights.clone(),
+        skeleton,
+        metacarpal_bases: hand.metacarpal_bases.map(|p| m(&p)),
+    })
 }
 
 /// Build a [`BaseHand`] from the bytes of a generic-hand GLB (metres, WebXR joint names).
@@ -269,6 +312,50 @@ mod tests {
         }
     }
 
+    /// The right template is built by mirroring the left asset; that stands for the right asset
+    /// because its surface is the left one's mirror image, vertex for vertex up to the order
+    /// (checked here on the welded asset, up to the assets' placement).
+    #[test]
+    fn the_right_asset_is_the_left_surface_mirrored() {
+        let label = Path::new("assets/generic-hand/right.glb");
+        let asset = base_hand_from_glb(
+            include_bytes!("../../assets/generic-hand/right.glb"),
+            Side::Right,
+            label,
+        )
+        .unwrap();
+        let mirrored = load_base_hand(Side::Right).unwrap();
+        let (a, b) = (&asset.mesh.vertices, &mirrored.mesh.vertices);
+        assert_eq!(a.len(), b.len());
+        let centroid = |v: &[Point]| v.iter().map(|p| p.coords).sum::<Vec3>() / v.len() as f64;
+        let shift = centroid(a) - centroid(b);
+        let mut hit = vec![false; a.len()];
+        for p in b {
+            let q = p + shift;
+            let (i, d) = a
+                .iter()
+                .enumerate()
+                .map(|(i, x)| (i, (x - q).norm()))
+                .min_by(|x, y| x.1.total_cmp(&y.1))
+                .unwrap();
+            assert!(d < 0.01, "{d} mm");
+            hit[i] = true;
+        }
+        assert!(
+            hit.iter().all(|h| *h),
+            "one asset vertex for each mirrored one"
+        );
+        // The mirror keeps the vertex order and turns the faces, so they still point outward.
+        let left = load_base_hand(Side::Left).unwrap();
+        assert_eq!(mirrored.weights, left.weights);
+        assert!((mirrored.mesh.signed_volume() - left.mesh.signed_volume()).abs() < 1e-6);
+        for j in Joint::ALL {
+            let (l, r) = (mirrored.skeleton.joint(j), left.skeleton.joint(j));
+            assert!((l.centre.x + r.centre.x).abs() < 1e-12 && l.centre.y == r.centre.y);
+            assert!((l.y().x + r.y().x).abs() < 1e-9 && (l.z().z - r.z().z).abs() < 1e-9);
+        }
+    }
+
     #[test]
     fn template_anatomy_matches_the_side() {
         for side in [Side::Right, Side::Left] {
@@ -316,10 +403,10 @@ mod tests {
     fn open_or_non_manifold_template_is_refused() {
         use crate::io::gltf::{glb_bytes, read_gltf_slice};
         let label = Path::new("bad-hand.glb");
-        let mut scene = read_gltf_slice(RIGHT_GLB, Units::Metres, label).unwrap();
+        let mut scene = read_gltf_slice(LEFT_GLB, Units::Metres, label).unwrap();
         scene.meshes[0].mesh.faces.pop();
         let bytes = glb_bytes(&scene, Units::Metres).unwrap();
-        let e = base_hand_from_glb(&bytes, Side::Right, label)
+        let e = base_hand_from_glb(&bytes, Side::Left, label)
             .unwrap_err()
             .to_string();
         assert!(
@@ -327,11 +414,11 @@ mod tests {
             "{e}"
         );
 
-        let mut scene = read_gltf_slice(RIGHT_GLB, Units::Metres, label).unwrap();
+        let mut scene = read_gltf_slice(LEFT_GLB, Units::Metres, label).unwrap();
         let f = scene.meshes[0].mesh.faces[0];
         scene.meshes[0].mesh.faces.push(f);
         let bytes = glb_bytes(&scene, Units::Metres).unwrap();
-        let e = base_hand_from_glb(&bytes, Side::Right, label)
+        let e = base_hand_from_glb(&bytes, Side::Left, label)
             .unwrap_err()
             .to_string();
         assert!(e.contains("manifold") || e.contains("oriented"), "{e}");

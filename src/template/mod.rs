@@ -70,11 +70,21 @@ pub fn dominant_links(weights: &LinkWeights) -> Vec<usize> {
         .collect()
 }
 
-/// The high-resolution mesh, weights and skeleton of `side`, without a spec.
+/// The high-resolution mesh, weights and skeleton of `side`, without a spec. The right hand is
+/// the refined left one mirrored ([`generic_hand::mirror_base_hand`]): subdividing the mirrored
+/// base would number the new vertices in another order, and the two hands share their vertex
+/// numbering so that a landmark, a caliper pair or a field per vertex means the same on both.
 fn refine(side: Side) -> Result<(BaseHand, TriMesh, LinkWeights)> {
-    let base = load_base_hand(side)?;
-    let (mesh, weights) = refine_base(&base, SUBDIVISION_LEVELS);
-    Ok((base, mesh, weights))
+    let left = load_base_hand(Side::Left)?;
+    let (mesh, weights) = refine_base(&left, SUBDIVISION_LEVELS);
+    Ok(match side {
+        Side::Left => (left, mesh, weights),
+        Side::Right => (
+            generic_hand::mirror_base_hand(&left)?,
+            generic_hand::mirror_mesh(&mesh),
+            weights,
+        ),
+    })
 }
 
 /// `base`'s surface after `levels` Loop subdivisions, with its weights carried through the
@@ -184,6 +194,21 @@ mod tests {
                 let o = s.joint_centres[k];
                 assert!((0..3).all(|i| (c[i] - o[i]).abs() < 1e-9), "{side} {k}");
             }
+        }
+    }
+
+    /// The rule is anatomical (dorsal, distal, radial) and the left template is the right one
+    /// mirrored vertex for vertex, so each landmark and each caliper pair is the same vertex on
+    /// both hands: a left subject is fitted as the mirror image of a right one.
+    #[test]
+    fn the_rule_picks_the_same_vertices_on_mirror_image_hands() {
+        let spec = TemplateSpec::embedded().unwrap();
+        let (r, l) = (spec.hand(Side::Right), spec.hand(Side::Left));
+        assert_eq!(r.landmarks, l.landmarks);
+        assert_eq!(r.palm, l.palm);
+        for (d, [a, b]) in &r.dimensions {
+            let [c, e] = l.dimensions[d];
+            assert!((a, b) == (&c, &e) || (a, b) == (&e, &c), "{d}");
         }
     }
 
