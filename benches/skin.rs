@@ -165,6 +165,16 @@ fn skin_stage(c: &mut Criterion) {
             }))
         })
     });
+    // The default keeps the thumb metacarpal's vertices at their spacing through the
+    // simplification (and grows the face budget by as many); the quadrics alone are the paper's.
+    g.bench_function("default_low_resolution_without_thumb_spacing", |b| {
+        b.iter(|| {
+            run(black_box(&SkinOptions {
+                thumb_spacing_mm: 0.0,
+                ..SkinOptions::default()
+            }))
+        })
+    });
     g.bench_function("full_resolution", |b| {
         b.iter(|| {
             run(black_box(&SkinOptions {

@@ -128,6 +128,12 @@ enum Command {
         /// The default (sections scaled to their calipers); kept so that older scripts run.
         #[arg(long, hide = true, conflicts_with = "no_section_scaling")]
         section_scaling: bool,
+        /// Spacing of the vertices kept on the thumb's metacarpal when the template is
+        /// simplified for the skin fit, mm: the quadrics leave that smooth stretch a few long
+        /// faces, on which the fit can leave a lobe; 0 leaves the simplification to the
+        /// quadrics alone (the paper).
+        #[arg(long, value_name = "MM", default_value_t = ergohand::skin::pipeline::THUMB_METACARPAL_SPACING_MM)]
+        thumb_spacing: f64,
         /// Weight of the joint-centre terms of the skin fit; 0 leaves them out.
         #[arg(long, default_value_t = ergohand::skin::pipeline::CENTRE_WEIGHT)]
         centre_weight: f64,
@@ -329,6 +335,7 @@ fn main() -> ExitCode {
             no_section_scaling,
             section_scaling: _,
             centre_weight,
+            thumb_spacing,
             caliper_rounds,
             shape_prior,
             template,
@@ -339,6 +346,7 @@ fn main() -> ExitCode {
                     shape_prior: cli::reconstruct::shape_prior_option(shape_prior.as_deref())?,
                     unfold: !no_unfold,
                     section_scaling: !no_section_scaling,
+                    thumb_spacing_mm: cli::reconstruct::thumb_spacing_option(thumb_spacing)?,
                     ..o
                 })
             })

@@ -40,6 +40,18 @@ pub fn skin_options(
     })
 }
 
+/// `--thumb-spacing`, checked: a finite spacing >= 0 mm.
+pub fn thumb_spacing_option(mm: f64) -> Result<f64> {
+    if mm.is_finite() && mm >= 0.0 {
+        Ok(mm)
+    } else {
+        Err(Error::invalid(format!(
+            "--thumb-spacing {mm}: give a finite spacing >= 0 mm (0 keeps no extra vertices on \
+             the thumb)"
+        )))
+    }
+}
+
 /// The skin's shape prior from `--shape-prior`: when absent the one shipped with the generic
 /// template on that template (none on another), none for `none`, the shipped one for `builtin`,
 /// else the file (an error naming it when it is not a prior).

@@ -84,6 +84,34 @@ pub fn simplify_qem_within(
     collapse_until(mesh, 4, max_cost_mm2, keep)
 }
 
+/// Vertices of `mesh` among `candidates` to keep through [`simplify_qem`] so that every
+/// candidate lies within `spacing_mm` of a kept one: a greedy Poisson-disk pick in index order,
+/// at least `spacing_mm` from each other and from the `kept` vertices already chosen.
+///
+/// Quadric simplification spends its vertices where the surface bends and leaves a smooth
+/// stretch with a few long faces; a fit on such faces can only move that stretch as a whole.
+/// Deterministic; empty when `spacing_mm` is not positive.
+pub fn spaced_vertices(
+    mesh: &TriMesh,
+    candidates: impl IntoIterator<Item = usize>,
+    kept: &[usize],
+    spacing_mm: f64,
+) -> Vec<usize> {
+    if spacing_mm.is_nan() || spacing_mm <= 0.0 {
+        return Vec::new();
+    }
+    let mut chosen: Vec<Point> = kept.iter().map(|&v| mesh.vertices[v]).collect();
+    let mut out = Vec::new();
+    for v in candidates {
+        let p = mesh.vertices[v];
+        if chosen.iter().all(|q| (q - p).norm() >= spacing_mm) {
+            chosen.push(p);
+            out.push(v);
+        }
+    }
+    out
+}
+
 /// The collapse loop of [`simplify_qem`] and [`simplify_qem_within`]: down to `target_faces`
 /// or until the cheapest valid candidate costs more than `max_cost`.
 fn collapse_until(
@@ -835,5 +863,48 @@ mod tests {
         assert!(worst > 0.0, "a face is flipped (cosine {worst})");
         assert!(max < 2.0, "max distance {max} mm");
         assert!(mean < 0.3, "mean distance {mean} mm");
+    }
+
+    /// Every candidate ends within the spacing of a chosen or already kept vertex (the cover),
+    /// the chosen ones stand at least the spacing apart and from the kept ones (the packing),
+    /// and simplifying with them kept leaves each of them in place.
+    #[test]
+    fn spaced_vertices_cover_and_pack_the_candidates() {
+        let m = icosphere(20.0, 3);
+        let candidates: Vec<usize> = (0..m.n_vertices())
+            .filter(|&v| m.vertices[v].z > 0.0)
+            .collect();
+        let kept = vec![candidates[0], candidates[candidates.len() / 2]];
+        for spacing in [3.0, 6.0, 10.0] {
+            let chosen = spaced_vertices(&m, candidates.iter().copied(), &kept, spacing);
+            assert!(!chosen.is_empty() && chosen.len() < candidates.len());
+            let anchors: Vec<usize> = kept.iter().chain(&chosen).copied().collect();
+            let dist = |a: usize, b: usize| (m.vertices[a] - m.vertices[b]).norm();
+            for &c in &candidates {
+                assert!(
+                    anchors.iter().any(|&a| dist(a, c) < spacing),
+                    "candidate {c} farther than {spacing} mm from every anchor"
+                );
+            }
+            for (i, &a) in anchors.iter().enumerate() {
+                for &b in &anchors[i + 1..] {
+                    if chosen.contains(&a) || chosen.contains(&b) {
+                        assert!(
+                            dist(a, b) >= spacing,
+                            "{a} and {b} closer than {spacing} mm"
+                        );
+                    }
+                }
+            }
+            let mut keep = anchors.clone();
+            keep.sort_unstable();
+            let s = simplify_qem(&m, 100 + 2 * chosen.len(), &keep).unwrap();
+            for &v in &anchors {
+                let i = s.index_of[v].expect("a kept vertex survives");
+                assert_eq!(s.mesh.vertices[i], m.vertices[v]);
+            }
+        }
+        assert!(spaced_vertices(&m, candidates.iter().copied(), &kept, 0.0).is_empty());
+        assert!(spaced_vertices(&m, candidates.iter().copied(), &kept, f64::NAN).is_empty());
     }
 }
