@@ -1904,13 +1904,28 @@ mod tests {
                     .sum::<f64>()
                     / 5.0
             };
+            // The apex each marker pins: its landmark vertex against the reference.
+            let apex_error = |m: &TriMesh| {
+                let pts: Vec<Point> = Finger::ALL
+                    .iter()
+                    .map(|f| m.vertices[t.spec.landmarks[f.tip_marker()]])
+                    .collect();
+                let d: Vec<f64> = tree.distances(&pts).into_iter().flatten().collect();
+                d.iter().sum::<f64>() / d.len() as f64
+            };
             let (e0, e1) = (tip_error(&plain.high), tip_error(&tipped.high));
+            let (p0, p1) = (apex_error(&plain.high), apex_error(&tipped.high));
             let (a0, a1) = (frame_error(&plain), frame_error(&tipped));
             eprintln!(
                 "{body:?} seed {seed}: fingertips {e0:.2} -> {e1:.2} mm from the reference, \
-                 distal frames {a0:.1} -> {a1:.1} deg from the phalanges"
+                 their apexes {p0:.2} -> {p1:.2} mm, distal frames {a0:.1} -> {a1:.1} deg from \
+                 the phalanges"
             );
-            assert!(e1 < e0, "{body:?}: fingertips {e0:.2} -> {e1:.2} mm");
+            assert!(p1 < 0.5 * p0, "{body:?}: apexes {p0:.2} -> {p1:.2} mm");
+            // The pinned apex reshapes the pad around it: on the procedural seed the ring's and
+            // the little finger's pads move 0.3-0.4 mm off while the others come nearer, and the
+            // fingertips as a whole stay level (README, "Skin").
+            assert!(e1 < e0 + 0.05, "{body:?}: fingertips {e0:.2} -> {e1:.2} mm");
             match body {
                 crate::synth::Body::Procedural => assert!(a1 < a0, "{a0:.1} -> {a1:.1} deg"),
                 _ => assert!(a1 < 10.0, "{a0:.1} -> {a1:.1} deg"),
