@@ -17,7 +17,9 @@
 //! `landmark` (landmark placement). A score line gives the medians over the joints of the 3-DOF
 //! and 1-DOF centre errors, the 1-DOF errors off and along the axis, the axis error, the median
 //! and largest link-length error and the worst joint, mm and degrees; `ALL` lines pool the
-//! subjects given (median of the per-joint errors over all of them).
+//! subjects given (median of the per-joint errors over all of them). Where `truth.json` has the
+//! true joints' frames (`synth` writes them), each line also gives the 1-DOF errors' RMS along
+//! the true axis (x), dorsal (y) and along the link (z), and the `ALL` lines split them by kind.
 
 use ergohand::anatomy::Joint;
 use ergohand::link::estimate::{estimate_link_model_with, LinkOptions};
@@ -102,8 +104,32 @@ fn options(name: &str) -> LinkOptions {
     LinkOptions::named(name).unwrap_or_else(|| panic!("unknown option set {name}"))
 }
 
-/// Per joint: (joint, centre error, off-axis part, along-axis part, axis error in degrees).
-type Row = (Joint, f64, f64, f64, Option<f64>);
+/// Per joint: (joint, centre error, off-axis part, along-axis part, axis error in degrees, the
+/// error in the true joint's frame: along its axis, dorsal, along the link).
+type Row = (Joint, f64, f64, f64, Option<f64>, Option<Vector3<f64>>);
+
+/// The true joints' frames (rows x, y, z) from `truth.json`: `synth` writes them beside the
+/// spec's centres and axes, which is all `read_truth` takes.
+fn truth_frames(path: &Path) -> std::collections::BTreeMap<String, nalgebra::Matrix3<f64>> {
+    let text = std::fs::read_to_string(path).unwrap_or_default();
+    let v: serde_json::Value = serde_json::from_str(&text).unwrap_or_default();
+    let mut out = std::collections::BTreeMap::new();
+    if let Some(joints) = v["joints"].as_object() {
+        for (name, j) in joints {
+            let rows: Option<Vec<f64>> = j["frame"]
+                .as_array()
+                .map(|r| {
+                    r.iter()
+                        .flat_map(|x| x.as_array().cloned().unwrap_or_default())
+                })
+                .map(|it| it.filter_map(|x| x.as_f64()).collect());
+            if let Some(r) = rows.filter(|r| r.len() == 9) {
+                out.insert(name.clone(), nalgebra::Matrix3::from_row_slice(&r));
+            }
+        }
+    }
+    out
+}
 
 fn score(
     dir: &Path,
@@ -111,6 +137,7 @@ fn score(
 ) -> Result<(Vec<Row>, Vec<f64>), Box<dyn std::error::Error>> {
     let subject = Subject::load(dir)?;
     let truth = read_truth(&dir.join("truth.json"))?;
+    let frames = truth_frames(&dir.join("truth.json"));
     let model = estimate_link_model_with(&subject, opts)?;
     let records = joint_records(&model.skeleton);
     if std::env::var_os("LINK_CENTRES_CUES").is_some() {
@@ -148,7 +175,8 @@ fn score(
                 }
                 _ => None,
             };
-            (j, d.norm(), off, along, axis)
+            let comp = frames.get(j.name()).map(|f| f * d);
+            (j, d.norm(), off, along, axis, comp)
         })
         .collect();
     let truth_lengths = link_lengths(&truth.joints);
@@ -175,7 +203,7 @@ fn summary(label: &str, rows: &[Row], lengths: &[f64]) -> String {
         .map(|r| format!("{} {:.2}", r.0, r.1))
         .unwrap_or_default();
     format!(
-        "{label}\t3dof {:.2}\t1dof {:.2} (off {:.2} along {:.2})\taxis {:.2}\tlen {:.2} max {:.2}\tworst {worst}",
+        "{label}\t3dof {:.2}\t1dof {:.2} (off {:.2} along {:.2})\taxis {:.2}\tlen {:.2} max {:.2}\tworst {worst}{}",
         by(3, 0),
         by(1, 0),
         by(1, 1),
@@ -183,7 +211,21 @@ fn summary(label: &str, rows: &[Row], lengths: &[f64]) -> String {
         axis,
         median(lengths.to_vec()),
         lengths.iter().cloned().fold(0.0, f64::max),
+        components(rows.iter().filter(|r| r.0.dof() == 1))
+            .map(|c| format!("\t1dof rms x {:.2} y {:.2} z {:.2}", c.x, c.y, c.z))
+            .unwrap_or_default(),
     )
+}
+
+/// RMS of the rows' errors in their true joints' frames (x along the axis, y dorsal, z along
+/// the link), `None` when a row has no true frame.
+fn components<'a>(rows: impl Iterator<Item = &'a Row>) -> Option<Vector3<f64>> {
+    let c: Vec<Vector3<f64>> = rows.map(|r| r.5).collect::<Option<_>>()?;
+    if c.is_empty() {
+        return None;
+    }
+    let ms = c.iter().map(|v| v.component_mul(v)).sum::<Vector3<f64>>() / c.len() as f64;
+    Some(ms.map(f64::sqrt))
 }
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
@@ -253,6 +295,18 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             "{}",
             summary(&format!("{name}\tALL"), &all_rows, &all_lengths)
         );
+        for kind in ["PIP", "DIP", "T_MCP", "T_IP"] {
+            let of_kind = all_rows
+                .iter()
+                .filter(|r| r.0.dof() == 1 && r.0.name().ends_with(kind))
+                .filter(|r| kind != "DIP" || !r.0.name().starts_with('T'));
+            if let Some(c) = components(of_kind) {
+                println!(
+                    "{name}\tALL {kind}\t1dof rms x {:.2} y {:.2} z {:.2}",
+                    c.x, c.y, c.z
+                );
+            }
+        }
     }
     Ok(())
 }
