@@ -174,6 +174,8 @@ struct Prior {
     frames_since: usize,
     /// The joints it held.
     held: Vec<Joint>,
+    /// The joints it coupled (a digit solved from fewer markers than it has).
+    coupled: Vec<Joint>,
     /// Per marker: rejected as an outlier and not accepted since (unseen frames keep it so).
     suspect: Vec<bool>,
 }
@@ -243,6 +245,7 @@ impl<'a> Solver<'a> {
                         last: s.clone(),
                         frames_since: 1,
                         held: sol.held.clone(),
+                        coupled: sol.coupled.clone(),
                         suspect,
                     });
                     prev_solved = Some(s.clone());
@@ -376,7 +379,7 @@ impl<'a> Solver<'a> {
                 }
             }
             if !changed {
-                changed = self.readmit(&mut inlier, &state, obs, prior, &hold_from);
+                changed = self.readmit(&mut inlier, &mut state, obs, prior, &hold_from);
             }
             if !changed {
                 let worst = (0..n)
@@ -433,14 +436,18 @@ impl<'a> Solver<'a> {
     /// markers on a digit of five DOF even a swapped label fits, so a marker rejected and not
     /// accepted since (suspect) comes back only in a group of three or more markers on the
     /// digit, where a swapped one cannot. Only a group whose prediction is stale is
-    /// considered: one the frame before `prior` did not solve (or that is not the frame
-    /// before). A group solved in the frame before predicts well, and a marker that jumped
-    /// past the gate from there is a swapped label or a stray sample. Returns whether any
-    /// group was let in.
+    /// considered: one the frame before `prior` did not solve, or solved only through the
+    /// coupling terms (a finger with one marker: its angles followed the hand's coupling, not
+    /// its markers, and may have drifted from the finger), or that is not the frame before. A
+    /// group its markers solved in the frame before predicts well, and a marker that jumped
+    /// past the gate from there is a swapped label or a stray sample. A coupled digit's
+    /// markers come back only three together, as suspect ones do: its prediction held the
+    /// finger near where its one marker is, so two returning markers could fit a swapped
+    /// label. Returns whether any group was let in.
     fn readmit(
         &self,
         inlier: &mut [bool],
-        state: &HandState,
+        state: &mut HandState,
         obs: &[Option<Point>],
         prior: Option<&Prior>,
         anchor: &HandState,
@@ -449,10 +456,18 @@ impl<'a> Solver<'a> {
             Some(p) => (Some(&p.predicted), &p.suspect[..]),
             None => (None, &[][..]),
         };
+        // A digit the frame before solved through the coupling terms and held nothing of.
+        let coupled_before = |g: Option<Finger>| match (prior, g) {
+            (Some(p), Some(f)) if p.frames_since == 1 => {
+                f.joints().iter().any(|j| p.coupled.contains(j))
+                    && !f.joints().iter().any(|j| p.held.contains(j))
+            }
+            _ => false,
+        };
         let stale = |g: Option<Finger>| match prior {
             Some(p) if p.frames_since == 1 => match g {
                 None => p.held.contains(&Joint::Wrist),
-                Some(f) => f.joints().iter().any(|j| p.held.contains(j)),
+                Some(f) => f.joints().iter().any(|j| p.held.contains(j)) || coupled_before(g),
             },
             _ => true,
         };
@@ -462,8 +477,12 @@ impl<'a> Solver<'a> {
         // `None`: the forearm's markers (the palm's are never on a held link).
         let groups = [None].into_iter().chain(Finger::ALL.map(Some));
         for g in groups.filter(|&g| stale(g)) {
-            let member = |i: usize| on_held[i] && self.digit[i] == g;
-            let is_suspect = |i: usize| suspect.get(i).copied().unwrap_or(false);
+            let was_coupled = coupled_before(g);
+            let member = |i: usize| {
+                self.digit[i] == g
+                    && (on_held[i] || (was_coupled && self.att.markers[i].link != Link::Palm))
+            };
+            let is_suspect = |i: usize| was_coupled || suspect.get(i).copied().unwrap_or(false);
             let mut candidates: Vec<usize> = (0..n)
                 .filter(|&i| member(i) && !inlier[i] && obs[i].is_some())
                 .collect();
@@ -499,19 +518,51 @@ impl<'a> Solver<'a> {
                 planes: &[],
                 plane_weight: 0.0,
             };
-            let (s, _) = self.solve(state.clone(), obs, &fit, &con, pred);
-            let res = self.residuals(&self.kin.evaluate(&s), obs);
-            // Every marker of the digit, not only the candidates: a swapped label fits only by
-            // pulling the digit off its other markers.
-            let group_res: Vec<f64> = (0..n)
-                .filter(|&i| fit[i] && self.digit[i] == g && self.att.markers[i].link != Link::Palm)
-                .filter_map(|i| res[i])
-                .collect();
-            let rms = (group_res.iter().map(|r| r * r).sum::<f64>()
-                / group_res.len().max(1) as f64)
-                .sqrt();
-            if group_res.iter().all(|&r| r <= self.opts.gate_mm) && rms <= self.opts.huber_mm {
+            // The group's fit from the state solved without it and, for a digit, from three
+            // flexions of its joints as a fresh start tries (its stale angles may lie far from
+            // the returning markers, too far for one descent); the best is judged.
+            let mut starts = vec![state.clone()];
+            if let Some(f) = g {
+                for flex in [0.0f64, 40.0, 80.0] {
+                    let mut s = state.clone();
+                    for j in f.joints() {
+                        s.angles[j.index()][0] = flex.to_radians();
+                    }
+                    starts.push(s);
+                }
+            }
+            let mut best: Option<(f64, Vec<f64>, HandState)> = None;
+            for start in starts {
+                let (s, _) = self.solve(start, obs, &fit, &con, pred);
+                let res = self.residuals(&self.kin.evaluate(&s), obs);
+                // Every marker of the digit, not only the candidates: a swapped label fits
+                // only by pulling the digit off its other markers.
+                let group_res: Vec<f64> = (0..n)
+                    .filter(|&i| {
+                        fit[i] && self.digit[i] == g && self.att.markers[i].link != Link::Palm
+                    })
+                    .filter_map(|i| res[i])
+                    .collect();
+                let rms = (group_res.iter().map(|r| r * r).sum::<f64>()
+                    / group_res.len().max(1) as f64)
+                    .sqrt();
+                if best.as_ref().is_none_or(|b| rms < b.0) {
+                    best = Some((rms, group_res, s));
+                }
+            }
+            let (rms, group_res, s) = best.expect("at least one start");
+            // A coupled digit's markers each within the Huber scale, not the gate: its one
+            // marker held it near the hand's other digits, and a neighbour's swapped label
+            // fits within the gate by bending the finger sideways.
+            let each = if was_coupled {
+                self.opts.huber_mm
+            } else {
+                self.opts.gate_mm
+            };
+            if group_res.iter().all(|&r| r <= each) && rms <= self.opts.huber_mm {
                 inlier.copy_from_slice(&trial);
+                // The next round starts where the group fits, not back at the stale angles.
+                *state = s;
                 any = true;
             }
         }
