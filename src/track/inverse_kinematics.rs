@@ -525,7 +525,7 @@ impl<'a> Solver<'a> {
             if let Some(f) = g {
                 for flex in [0.0f64, 40.0, 80.0] {
                     let mut s = state.clone();
-                    for j in f.joints() {
+                    for j in f.joints().into_iter().filter(|j| !held.contains(j)) {
                         s.angles[j.index()][0] = flex.to_radians();
                     }
                     starts.push(s);
