@@ -163,6 +163,10 @@ pub struct Solver<'a> {
     which: [(usize, usize); MAX_PARAMS],
 }
 
+/// Flexions a digit is started from where its angles tell nothing (a fresh start, or markers
+/// that come back far from stale angles), degrees on each flexion DOF.
+const START_FLEXIONS_DEG: [f64; 3] = [0.0, 40.0, 80.0];
+
 /// What one frame's solve starts from and is held toward.
 #[derive(Clone, Debug)]
 struct Prior {
@@ -456,18 +460,18 @@ impl<'a> Solver<'a> {
             Some(p) => (Some(&p.predicted), &p.suspect[..]),
             None => (None, &[][..]),
         };
+        let any_of = |joints: &[Joint], f: Finger| f.joints().iter().any(|j| joints.contains(j));
         // A digit the frame before solved through the coupling terms and held nothing of.
         let coupled_before = |g: Option<Finger>| match (prior, g) {
             (Some(p), Some(f)) if p.frames_since == 1 => {
-                f.joints().iter().any(|j| p.coupled.contains(j))
-                    && !f.joints().iter().any(|j| p.held.contains(j))
+                any_of(&p.coupled, f) && !any_of(&p.held, f)
             }
             _ => false,
         };
         let stale = |g: Option<Finger>| match prior {
             Some(p) if p.frames_since == 1 => match g {
                 None => p.held.contains(&Joint::Wrist),
-                Some(f) => f.joints().iter().any(|j| p.held.contains(j)) || coupled_before(g),
+                Some(f) => any_of(&p.held, f) || coupled_before(g),
             },
             _ => true,
         };
@@ -518,12 +522,12 @@ impl<'a> Solver<'a> {
                 planes: &[],
                 plane_weight: 0.0,
             };
-            // The group's fit from the state solved without it and, for a digit, from three
-            // flexions of its joints as a fresh start tries (its stale angles may lie far from
-            // the returning markers, too far for one descent); the best is judged.
+            // The group's fit from the state solved without it and, for a digit, from the
+            // flexions of its joints a fresh start tries (its stale angles may lie far from the
+            // returning markers, too far for one descent); the best is judged.
             let mut starts = vec![state.clone()];
             if let Some(f) = g {
-                for flex in [0.0f64, 40.0, 80.0] {
+                for flex in START_FLEXIONS_DEG {
                     let mut s = state.clone();
                     for j in f.joints().into_iter().filter(|j| !held.contains(j)) {
                         s.angles[j.index()][0] = flex.to_radians();
@@ -589,8 +593,8 @@ impl<'a> Solver<'a> {
             .map(|r| r.isometry())
     }
 
-    /// A fresh start: every digit from three flexions (0, 40 and 80 degrees on each flexion
-    /// DOF), each digit keeping its best; then one solve from the combination.
+    /// A fresh start: every digit from each of [`START_FLEXIONS_DEG`] on each flexion DOF, each
+    /// digit keeping its best; then one solve from the combination.
     fn multi_start(
         &self,
         start: HandState,
@@ -614,7 +618,7 @@ impl<'a> Solver<'a> {
         let mut wrist = [0.0; 3];
         let mut iterations = 0;
         let mut best_total = f64::INFINITY;
-        for flex in [0.0f64, 40.0, 80.0] {
+        for flex in START_FLEXIONS_DEG {
             let mut s = start.clone();
             for j in &Joint::ALL[1..] {
                 s.angles[j.index()][0] = flex.to_radians();
