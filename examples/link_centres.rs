@@ -24,11 +24,12 @@
 use ergohand::anatomy::Joint;
 use ergohand::link::estimate::{estimate_link_model_with, LinkOptions};
 use ergohand::mocap::subject::Subject;
-use ergohand::skeleton::record::joint_records;
+use ergohand::skeleton::record::{joint_records, JointRecord};
 use ergohand::synth::capture::ErrorModel;
 use ergohand::synth::{self, Body, Preset, SynthOptions};
 use ergohand::validate::link_accuracy::{link_lengths, read_truth};
-use nalgebra::Vector3;
+use nalgebra::{Matrix3, Vector3};
+use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
 fn arg(args: &[String], name: &str) -> Option<String> {
@@ -108,27 +109,24 @@ fn options(name: &str) -> LinkOptions {
 /// error in the true joint's frame: along its axis, dorsal, along the link).
 type Row = (Joint, f64, f64, f64, Option<f64>, Option<Vector3<f64>>);
 
-/// The true joints' frames (rows x, y, z) from `truth.json`: `synth` writes them beside the
-/// spec's centres and axes, which is all `read_truth` takes.
-fn truth_frames(path: &Path) -> std::collections::BTreeMap<String, nalgebra::Matrix3<f64>> {
-    let text = std::fs::read_to_string(path).unwrap_or_default();
-    let v: serde_json::Value = serde_json::from_str(&text).unwrap_or_default();
-    let mut out = std::collections::BTreeMap::new();
-    if let Some(joints) = v["joints"].as_object() {
-        for (name, j) in joints {
-            let rows: Option<Vec<f64>> = j["frame"]
-                .as_array()
-                .map(|r| {
-                    r.iter()
-                        .flat_map(|x| x.as_array().cloned().unwrap_or_default())
-                })
-                .map(|it| it.filter_map(|x| x.as_f64()).collect());
-            if let Some(r) = rows.filter(|r| r.len() == 9) {
-                out.insert(name.clone(), nalgebra::Matrix3::from_row_slice(&r));
-            }
-        }
+/// The true joints' frames (rows x, y, z) from `truth.json`: `synth` writes its joints as
+/// [`JointRecord`]s, frames included, beside the spec's centres and axes, which is all
+/// `read_truth` takes. Empty for a truth without them.
+fn truth_frames(path: &Path) -> BTreeMap<String, Matrix3<f64>> {
+    #[derive(serde::Deserialize)]
+    struct Records {
+        joints: BTreeMap<String, JointRecord>,
     }
-    out
+    std::fs::read_to_string(path)
+        .ok()
+        .and_then(|text| serde_json::from_str::<Records>(&text).ok())
+        .map(|r| {
+            r.joints
+                .into_iter()
+                .map(|(name, j)| (name, Matrix3::from(j.frame).transpose()))
+                .collect()
+        })
+        .unwrap_or_default()
 }
 
 fn score(
@@ -295,11 +293,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             "{}",
             summary(&format!("{name}\tALL"), &all_rows, &all_lengths)
         );
-        for kind in ["PIP", "DIP", "T_MCP", "T_IP"] {
+        // Among the hinges the kinds `MCP` and `IP` are the thumb's alone.
+        for kind in ["PIP", "DIP", "MCP", "IP"] {
             let of_kind = all_rows
                 .iter()
-                .filter(|r| r.0.dof() == 1 && r.0.name().ends_with(kind))
-                .filter(|r| kind != "DIP" || !r.0.name().starts_with('T'));
+                .filter(|r| r.0.dof() == 1 && r.0.kind() == kind);
             if let Some(c) = components(of_kind) {
                 println!(
                     "{name}\tALL {kind}\t1dof rms x {:.2} y {:.2} z {:.2}",
