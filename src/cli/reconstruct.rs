@@ -27,11 +27,11 @@ pub fn skin_options(
     pose_template: bool,
     centre_weight: f64,
 ) -> Result<SkinOptions> {
-    if !(centre_weight.is_finite() && centre_weight >= 0.0) {
-        return Err(Error::invalid(format!(
-            "--centre-weight {centre_weight}: give a finite weight >= 0 (0 turns the centre terms off)"
-        )));
-    }
+    let centre_weight = non_negative(
+        "--centre-weight",
+        centre_weight,
+        "a finite weight >= 0 (0 turns the centre terms off)",
+    )?;
     Ok(SkinOptions {
         resolution,
         pose_template,
@@ -42,13 +42,20 @@ pub fn skin_options(
 
 /// `--thumb-spacing`, checked: a finite spacing >= 0 mm.
 pub fn thumb_spacing_option(mm: f64) -> Result<f64> {
-    if mm.is_finite() && mm >= 0.0 {
-        Ok(mm)
+    non_negative(
+        "--thumb-spacing",
+        mm,
+        "a finite spacing >= 0 mm (0 keeps no extra vertices on the thumb)",
+    )
+}
+
+/// `value` of the flag `flag` when it is finite and >= 0; else a one-line error naming the
+/// flag and the value, asking for `want`.
+fn non_negative(flag: &str, value: f64, want: &str) -> Result<f64> {
+    if value.is_finite() && value >= 0.0 {
+        Ok(value)
     } else {
-        Err(Error::invalid(format!(
-            "--thumb-spacing {mm}: give a finite spacing >= 0 mm (0 keeps no extra vertices on \
-             the thumb)"
-        )))
+        Err(Error::invalid(format!("{flag} {value}: give {want}")))
     }
 }
 
