@@ -126,11 +126,10 @@ fn starts_deep_inside(
             .any(|p| part.grid.zone(p) == super::broad::Zone::Inside)
 }
 
-/// Quality of the hand closed by `opts` from `root`: (pads of the plan touching, epsilon,
-/// volume ([`super::quality::ranking_quality`]: 0 with force closure), contact area), the
-/// contacts measured on every `stride`-th skin vertex (each standing for `stride` vertices'
-/// area) and the friction cones linearised with `edges` edges; epsilon
-/// and volume of the pads' contacts alone for a plan with [`GraspPlan::pads`]; with `squeezed`,
+/// Quality of the hand closed by `opts` from `root`, its volume left to [`settle`] (see
+/// [`Screened`]), the contacts measured on every `stride`-th skin vertex (each standing for
+/// `stride` vertices' area) and the friction cones linearised with `edges` edges; epsilon and
+/// volume of the pads' contacts alone for a plan with [`GraspPlan::pads`]; with `squeezed`,
 /// measured after the [`squeeze`], as the scene is. `None` when the autograsp refuses the
 /// start.
 #[allow(clippy::too_many_arguments)]
@@ -144,7 +143,8 @@ fn closed_quality(
     sample: &(Vec<usize>, Vec<usize>, Vec<f64>),
     edges: usize,
     squeezed: bool,
-) -> Option<(usize, f64, f64, f64)> {
+    index: usize,
+) -> Option<Screened> {
     let g = autograsp(hand, part, plan, root, opts).ok()?;
     let pose = if squeezed {
         squeeze(hand, part, plan, &g, opts).0
@@ -166,13 +166,75 @@ fn closed_quality(
         .cloned()
         .collect();
     let w = super::quality::cone_wrenches(&held, mu, &part.centre_of_mass, part.max_radius, edges);
-    let q = super::quality::ranking_quality(&w);
+    let e = super::quality::epsilon(&w);
     let pads = plan.pads.iter().filter(|l| c.touches(l.index())).count();
-    Some((pads, q.epsilon, q.volume, c.total_area_mm2()))
+    Some(Screened {
+        score: (index, pads, e.epsilon, 0.0, c.total_area_mm2()),
+        wrenches: (!e.force_closure).then_some(w),
+    })
 }
 
 /// A candidate's score: (its index, pads of the plan touching, epsilon, volume, contact area).
 type Score = (usize, usize, f64, f64, f64);
+
+/// A scored candidate whose volume quality may still be missing: a grasp without force
+/// closure keeps its wrenches until [`settle`] needs its volume (0 until then); one with force
+/// closure ranks by its epsilon and has volume 0, since two such grasps never tie on epsilon.
+/// The whole hull behind a volume (tens of thousands of facets, against a few hundred for the
+/// nearest-facet epsilon) was most of a screening's cost, and only candidates that tie on pads
+/// and epsilon (those without force closure do, at 0) near the top of the ranking are ordered
+/// by it.
+struct Screened {
+    score: Score,
+    wrenches: Option<Vec<super::quality::Wrench>>,
+}
+
+/// The order [`screen_and_rank`] keeps: best first by [`by_quality`], ties to the lower index.
+fn better_first(a: &Score, b: &Score) -> std::cmp::Ordering {
+    by_quality(b, a).then(a.0.cmp(&b.0))
+}
+
+/// `ranked` sorted by pads and epsilon (best first, ties to the lower index) and in its final
+/// order before `from` (a boundary between ties): put it in its final order up to at least
+/// `upto`, computing the volumes of the candidates that tie there (in parallel), and return
+/// where that order now ends (the end of the last tie it reached).
+fn settle(ranked: &mut [Screened], from: usize, upto: usize) -> usize {
+    use rayon::prelude::*;
+    let mut g = from;
+    while g < upto.min(ranked.len()) {
+        let key = |s: &Screened| (s.score.1, s.score.2.to_bits());
+        let k = key(&ranked[g]);
+        let e = g + ranked[g..].iter().take_while(|s| key(s) == k).count();
+        if e - g > 1 {
+            ranked[g..e].par_iter_mut().for_each(|s| {
+                if let Some(w) = s.wrenches.take() {
+                    s.score.3 = super::quality::quality(&w).volume;
+                }
+            });
+            ranked[g..e].sort_by(|a, b| better_first(&a.score, &b.score));
+        }
+        g = e;
+    }
+    g
+}
+
+/// `scored` in the order of [`by_quality`] (ties to the lower index), its volumes computed
+/// where the order needs them.
+fn rank_all(mut scored: Vec<Screened>) -> Vec<Score> {
+    sort_by_pads_and_epsilon(&mut scored);
+    let n = scored.len();
+    settle(&mut scored, 0, n);
+    scored.into_iter().map(|s| s.score).collect()
+}
+
+/// Sort by pads and epsilon, best first, ties to the lower index (volumes left to [`settle`]).
+fn sort_by_pads_and_epsilon(scored: &mut [Screened]) {
+    scored.sort_by(|a, b| {
+        (b.score.1.cmp(&a.score.1))
+            .then(b.score.2.total_cmp(&a.score.2))
+            .then(a.score.0.cmp(&b.score.0))
+    });
+}
 
 /// The order of [`closed_quality`]'s scores, the index aside: pads touching, then epsilon,
 /// then volume (which only grasps without force closure have), then contact area.
@@ -220,11 +282,9 @@ fn screen_and_rank(
     let coarse_sample = skin_sample(hand, SCREEN_STRIDE);
     let root_of = |i: usize| Some(approach_of(i)? * gf.inverse());
     let score = |i: usize, root, opts: &AutograspOptions, sample: &_, edges, squeezed| {
-        let (p, e, v, a) =
-            closed_quality(hand, part, plan, mu, root, opts, sample, edges, squeezed)?;
-        Some((i, p, e, v, a))
+        closed_quality(hand, part, plan, mu, root, opts, sample, edges, squeezed, i)
     };
-    let scored: Vec<Option<Score>> = (0..n)
+    let scored: Vec<Option<Screened>> = (0..n)
         .into_par_iter()
         .map_init(Vec::new, |buf, i| {
             bar.inc(1);
@@ -239,26 +299,27 @@ fn screen_and_rank(
         })
         .collect();
     bar.finish_and_clear();
-    let better = |a: &Score, b: &Score| by_quality(a, b).then(b.0.cmp(&a.0));
     let evaluated = scored.iter().filter(|s| s.is_some()).count();
     log::debug!(
         "placement search: screening {:.2} s",
         started.elapsed().as_secs_f64()
     );
-    let mut ranked: Vec<Score> = scored.into_iter().flatten().collect();
-    ranked.sort_by(|a, b| better(b, a));
+    let mut ranked: Vec<Screened> = scored.into_iter().flatten().collect();
+    sort_by_pads_and_epsilon(&mut ranked);
     let full_sample = skin_sample(hand, 1);
     let full = AutograspOptions::default();
     // Down the ranking, `finalists` at a time, until `finalists` full evaluations succeed.
-    let mut finals: Vec<Score> = Vec::new();
-    for chunk in ranked.chunks(finalists.max(1)) {
-        if finals.len() >= finalists {
-            break;
-        }
+    let step = finalists.max(1);
+    let (mut pos, mut settled) = (0, 0);
+    let mut finals: Vec<Screened> = Vec::new();
+    while finals.len() < finalists && pos < ranked.len() {
+        let end = (pos + step).min(ranked.len());
+        settled = settle(&mut ranked, settled, end);
         finals.extend(
-            chunk
+            ranked[pos..end]
                 .par_iter()
-                .filter_map(|&(i, ..)| {
+                .filter_map(|s| {
+                    let i = s.score.0;
                     score(
                         i,
                         root_of(i)?,
@@ -268,10 +329,11 @@ fn screen_and_rank(
                         true,
                     )
                 })
-                .collect::<Vec<Score>>(),
+                .collect::<Vec<Screened>>(),
         );
+        pos = end;
     }
-    finals.sort_by(|a, b| better(b, a));
+    let finals = rank_all(finals);
     log::debug!(
         "placement search: finalists {:.2} s",
         started.elapsed().as_secs_f64()
@@ -412,4 +474,82 @@ pub fn placement_search(
             .filter_map(|s| approach_of(s.0))
             .collect(),
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::grasp::contact::Contact;
+    use crate::grasp::quality::{cone_wrenches, epsilon, quality};
+
+    /// `n` contacts on a 20 mm sphere pushing roughly toward its centre.
+    fn scattered(rng: &mut Rng, n: usize) -> Vec<Contact> {
+        (0..n)
+            .map(|_| {
+                let d = rng.unit_vector();
+                let tilt = Vec3::from_fn(|_, _| rng.range(-0.3, 0.3));
+                let n = (-d + tilt).normalize();
+                Contact {
+                    link: "PALM".into(),
+                    link_index: 0,
+                    point: (d * 20.0).into(),
+                    normal: n.into(),
+                    depth_mm: 0.5,
+                    area_mm2: 10.0,
+                }
+            })
+            .collect()
+    }
+
+    /// The lazy ranking against the eager one it replaces: every candidate's volume from its
+    /// whole hull (0 with force closure) and one sort by pads, epsilon, volume and area. Same
+    /// order; and a prefix settled short of the ties without force closure leaves their hulls
+    /// unbuilt.
+    #[test]
+    fn lazy_volumes_rank_as_the_whole_hulls_do() {
+        let mut rng = Rng::new(7);
+        let mut lazy = Vec::new();
+        let mut eager = Vec::new();
+        for i in 0..40 {
+            let w = cone_wrenches(
+                &scattered(&mut rng, 2 + i % 7),
+                0.5,
+                &Point::origin(),
+                20.0,
+                SCREEN_CONE_EDGES,
+            );
+            let e = epsilon(&w);
+            let pads = i % 3;
+            let area = [10.0, 20.0][i % 2];
+            let volume = if e.force_closure {
+                0.0
+            } else {
+                quality(&w).volume
+            };
+            eager.push((i, pads, e.epsilon, volume, area));
+            lazy.push(Screened {
+                score: (i, pads, e.epsilon, 0.0, area),
+                wrenches: (!e.force_closure).then_some(w),
+            });
+        }
+        let closed = eager.iter().filter(|s| s.2 > 0.0).count();
+        assert!((5..=35).contains(&closed), "{closed} of 40 force closure");
+        eager.sort_by(better_first);
+        let mut partial: Vec<Screened> = lazy
+            .iter()
+            .map(|s| Screened {
+                score: s.score,
+                wrenches: s.wrenches.clone(),
+            })
+            .collect();
+        assert_eq!(rank_all(lazy), eager);
+        // The best pads group holds force closure grasps first: settling only its first
+        // candidate builds no hull.
+        sort_by_pads_and_epsilon(&mut partial);
+        assert!(partial[0].score.2 > 0.0, "{:?}", partial[0].score);
+        let end = settle(&mut partial, 0, 1);
+        assert_eq!(end, 1);
+        let unbuilt = partial.iter().filter(|s| s.wrenches.is_some()).count();
+        assert_eq!(unbuilt, eager.len() - closed);
+    }
 }

@@ -126,24 +126,6 @@ pub fn epsilon(wrenches: &[Wrench]) -> Epsilon {
     }
 }
 
-/// [`quality`] as a ranking needs it: epsilon as [`epsilon`] gives it (what an evaluation
-/// reports), and the volume only without force closure (0 with it). Two grasps with force
-/// closure never tie on epsilon, so only those without it are ranked by volume, and only those
-/// need the whole hull; the others get their epsilon from the nearest-facet search, a few
-/// hundred facets instead of tens of thousands.
-pub fn ranking_quality(wrenches: &[Wrench]) -> Quality {
-    let e = epsilon(wrenches);
-    if e.force_closure {
-        Quality {
-            force_closure: true,
-            epsilon: e.epsilon,
-            volume: 0.0,
-        }
-    } else {
-        quality(wrenches)
-    }
-}
-
 /// Force closure and epsilon of `contacts` with friction `mu` on a part (`com`, `rho`).
 pub fn grasp_epsilon(contacts: &[Contact], mu: f64, com: &Point, rho: f64) -> Epsilon {
     epsilon(&contact_wrenches(contacts, mu, com, rho))
@@ -457,45 +439,5 @@ mod tests {
         }
         // Both branches are exercised.
         assert!(inside >= 5 && outside >= 5, "{inside} / {outside}");
-    }
-
-    /// The ranking's keys: the evaluation's epsilon (the nearest-facet search's), the whole
-    /// hull's force closure and, without force closure, its volume.
-    #[test]
-    fn ranking_quality_keeps_the_whole_hulls_keys() {
-        let mut rng = Rng::new(12);
-        let (mut closed, mut open) = (0, 0);
-        for n in [2, 3, 5, 8, 16, 30] {
-            for mu in [0.1, 0.5] {
-                for _ in 0..2 {
-                    let w = contact_wrenches(
-                        &scattered_contacts(&mut rng, n),
-                        mu,
-                        &Point::origin(),
-                        20.0,
-                    );
-                    let (r, q) = (ranking_quality(&w), quality(&w));
-                    assert_eq!(r.force_closure, q.force_closure, "{n} contacts, mu {mu}");
-                    // The evaluation's epsilon exactly; the whole hull's to within the joggle
-                    // each settles on (up to 0.5 % on these near-degenerate sets, whose facets
-                    // hold several edges of one cone).
-                    assert_eq!(r.epsilon, epsilon(&w).epsilon);
-                    assert!(
-                        (r.epsilon - q.epsilon).abs() <= 1e-2 * q.epsilon + 1e-9,
-                        "{} vs {}",
-                        r.epsilon,
-                        q.epsilon
-                    );
-                    if q.force_closure {
-                        assert_eq!(r.volume, 0.0);
-                        closed += 1;
-                    } else {
-                        assert_eq!(r.volume, q.volume);
-                        open += 1;
-                    }
-                }
-            }
-        }
-        assert!(closed >= 3 && open >= 3, "{closed} / {open}");
     }
 }
