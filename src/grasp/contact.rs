@@ -43,6 +43,9 @@ pub struct PartShape {
     pub hi: Point,
     /// Broad phase.
     pub grid: NearGrid,
+    /// A finer broad phase whose band is the default contact tolerance ([`TOUCH_BAND_MM`]): the
+    /// closing's checks skip the skin it puts outside, which neither touches nor presses.
+    pub touch_grid: NearGrid,
     /// The hold test's collision mesh, made on first use ([`super::hold::hold_mesh`]).
     pub(crate) hold_mesh: std::sync::OnceLock<TriMesh>,
 }
@@ -50,6 +53,9 @@ pub struct PartShape {
 /// Band of the broad phase, mm: queries with a search radius up to this skip the exact
 /// projection of every point the grid puts outside the band.
 pub const GRID_BAND_MM: f64 = 3.0;
+
+/// Band of [`PartShape::touch_grid`], mm: [`ContactOptions`]' default tolerance.
+pub const TOUCH_BAND_MM: f64 = 1.0;
 
 /// A point against the part, from [`PartShape::probe`].
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -130,7 +136,10 @@ impl PartShape {
                 size.x, size.y, size.z
             ));
         }
-        let grid = NearGrid::new(&mesh, band_mm, closed);
+        let (grid, touch_grid) = rayon::join(
+            || NearGrid::new(&mesh, band_mm, closed),
+            || NearGrid::new(&mesh, TOUCH_BAND_MM, closed),
+        );
         Ok((
             PartShape {
                 face_normals: mesh.face_normals(),
@@ -143,6 +152,7 @@ impl PartShape {
                 lo,
                 hi,
                 grid,
+                touch_grid,
                 hold_mesh: std::sync::OnceLock::new(),
             },
             warnings,
@@ -255,7 +265,7 @@ pub struct ContactOptions {
 impl Default for ContactOptions {
     fn default() -> Self {
         ContactOptions {
-            tolerance_mm: 1.0,
+            tolerance_mm: TOUCH_BAND_MM,
             search_mm: GRID_BAND_MM,
             patches_per_link: 4,
         }
