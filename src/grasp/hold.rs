@@ -45,6 +45,10 @@ pub struct HoldTrial {
     /// came on ([`comes_to_rest`]); `None` when the trial ran its whole duration or the part
     /// passed the limit.
     pub at_rest_s: Option<f64>,
+    /// Stopped because the part had dropped in another direction ([`hold_verdict_hand`]): the
+    /// displacement is where it had got to, and `holds` says only that it had not dropped yet.
+    #[serde(skip_serializing_if = "std::ops::Not::not")]
+    pub cut_short: bool,
 }
 
 /// Result of [`hold_test`].
@@ -92,6 +96,33 @@ pub fn hold_test_hand(
     mass_kg: f64,
     mu: f64,
 ) -> Result<HoldReport> {
+    skin_ball_trials(hand, posed, part, mass_kg, mu, false)
+}
+
+/// [`hold_test_hand`] for a caller that needs only whether the grasp holds (a placement that
+/// will be dropped when it does not): the directions still running stop as soon as the part
+/// drops in one of them ([`HoldTrial::cut_short`]). `holds` is the same as
+/// [`hold_test_hand`]'s; the displacements of the directions cut short are not.
+pub fn hold_verdict_hand(
+    hand: &dyn PosableHand,
+    posed: &[Point],
+    part: &PartShape,
+    mass_kg: f64,
+    mu: f64,
+) -> Result<HoldReport> {
+    skin_ball_trials(hand, posed, part, mass_kg, mu, true)
+}
+
+/// The skin balls of [`hold_test_hand`] and their trials, all six to the end or (`verdict`)
+/// until the part drops in one.
+fn skin_ball_trials(
+    hand: &dyn PosableHand,
+    posed: &[Point],
+    part: &PartShape,
+    mass_kg: f64,
+    mu: f64,
+    verdict: bool,
+) -> Result<HoldReport> {
     let mesh = TriMesh {
         vertices: posed.to_vec(),
         faces: hand.rest_mesh().faces.clone(),
@@ -134,7 +165,7 @@ pub fn hold_test_hand(
                 .build()
         })
         .collect();
-    run_trials(colliders, &centres, part, mass_kg, mu)
+    run_trials(colliders, &centres, part, mass_kg, mu, verdict)
 }
 
 /// Parts with more triangles than this get a coarser collision mesh in the hold test.
@@ -210,17 +241,18 @@ pub fn hold_test(
         })
         .collect();
     let pts: Vec<Point> = used.iter().flat_map(|p| p.iter().copied()).collect();
-    run_trials(hulls, &pts, part, mass_kg, mu)
+    run_trials(hulls, &pts, part, mass_kg, mu, false)
 }
 
 /// The six trials with the hand's `colliders` (mm points `pts` on them locate the part's
-/// triangles to keep).
+/// triangles to keep); with `verdict`, those still running stop when one drops.
 fn run_trials(
     hulls: Vec<Collider>,
     pts: &[Point],
     part: &PartShape,
     mass_kg: f64,
     mu: f64,
+    verdict: bool,
 ) -> Result<HoldReport> {
     use rayon::prelude::*;
     let duration_s = 1.0;
@@ -295,6 +327,7 @@ fn run_trials(
                 displacement_mm: 0.5 * 9.81 * duration_s * duration_s * 1e3,
                 holds: false,
                 at_rest_s: None,
+                cut_short: false,
             })
             .collect();
         return Ok(HoldReport {
@@ -342,6 +375,7 @@ fn run_trials(
     let settled_s = clock.elapsed().as_secs_f64();
     let params = world.integration_parameters;
     drop(world);
+    let dropped = std::sync::atomic::AtomicBool::new(false);
     let trials: Vec<HoldTrial> = dirs
         .par_iter()
         .map(|g| {
@@ -350,13 +384,19 @@ fn run_trials(
             let mut d = 0.0f64;
             let mut path = Vec::with_capacity(steps);
             let mut at_rest = None;
+            let mut cut_short = false;
             for k in 0..steps {
+                if verdict && dropped.load(std::sync::atomic::Ordering::Relaxed) {
+                    cut_short = true;
+                    break;
+                }
                 world.step();
                 let c = world.bodies[body].position().transform_point(com);
                 let moved = (c - start).length() * 1e3;
                 d = if moved.is_finite() { moved } else { f64::MAX };
                 path.push(c);
                 if d >= HOLD_LIMIT_MM {
+                    dropped.store(true, std::sync::atomic::Ordering::Relaxed);
                     break;
                 }
                 if comes_to_rest(&path, &start, steps - 1 - k, params.dt) {
@@ -369,6 +409,7 @@ fn run_trials(
                 displacement_mm: d,
                 holds: d < HOLD_LIMIT_MM,
                 at_rest_s: at_rest,
+                cut_short,
             }
         })
         .collect();
@@ -628,6 +669,8 @@ mod tests {
         h.pose_vertices(&pose, &mut pts);
         let r = hold_test_hand(&h, &pts, &part, mass, mu).unwrap();
         assert!(r.holds, "{r:?}");
+        // Nothing drops, so the verdict runs every direction to its end.
+        assert_eq!(hold_verdict_hand(&h, &pts, &part, mass, mu).unwrap(), r);
 
         // The index fingertip of the pinch preshape: the skin vertex furthest along the distal
         // phalanx, and a cylinder across that direction sunk SQUEEZE_MM into it.
@@ -673,5 +716,18 @@ mod tests {
         );
         let r = hold_test_hand(&h, &pts, &part, mass, mu).unwrap();
         assert!(!r.holds, "{r:?}");
+        // The verdict agrees; each direction it ran to its end is the full test's (every
+        // direction is a world of its own), the others stopped short of it.
+        let v = hold_verdict_hand(&h, &pts, &part, mass, mu).unwrap();
+        assert!(!v.holds, "{v:?}");
+        assert!(v.trials.iter().any(|t| !t.holds && !t.cut_short), "{v:?}");
+        for (a, b) in v.trials.iter().zip(&r.trials) {
+            if a.cut_short {
+                // Stopped before it had dropped itself.
+                assert!(a.holds && a.at_rest_s.is_none(), "{a:?}");
+            } else {
+                assert_eq!(a, b);
+            }
+        }
     }
 }

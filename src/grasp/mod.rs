@@ -239,7 +239,8 @@ struct Attempt {
 }
 
 /// Close `hand` on `part` from `approach` (the grasp frame in the world): [`autograsp`], the
-/// [`autograsp::squeeze`], [`evaluate`], the finger-finger check and the hold test.
+/// [`autograsp::squeeze`], [`evaluate`], the finger-finger check and the hold test (with
+/// `verdict_only`, [`hold::hold_verdict_hand`]: for a runner-up, kept only when it holds).
 fn grasp_from(
     scene: &Scene,
     hand: &dyn PosableHand,
@@ -247,6 +248,7 @@ fn grasp_from(
     plan: &plan::GraspPlan,
     approach: &nalgebra::Isometry3<f64>,
     areas: &[f64],
+    verdict_only: bool,
 ) -> Result<Attempt> {
     let mut timings = Timings::default();
     let clock = std::time::Instant::now();
@@ -273,7 +275,12 @@ fn grasp_from(
     // on one core), which nothing else waits for: it is built beside the hold test.
     let (hold, volume) = rayon::join(
         || {
-            hold::hold_test_hand(
+            let test = if verdict_only {
+                hold::hold_verdict_hand
+            } else {
+                hold::hold_test_hand
+            };
+            test(
                 hand,
                 &hand_mesh.vertices,
                 part,
@@ -425,7 +432,9 @@ pub fn run_scene_on(
     // (its slide along the palm, the attempt)
     let mut tried: Vec<(Option<f64>, Attempt)> = Vec::new();
     for (k, (slide, approach)) in approaches.iter().enumerate() {
-        let attempt = grasp_from(scene, hand, part, &plan, approach, &areas);
+        // The best is reported whether it holds or not; a runner-up only when it holds, so its
+        // hold test may stop at the first drop.
+        let attempt = grasp_from(scene, hand, part, &plan, approach, &areas, k > 0);
         let attempt = match attempt {
             Ok(a) => a,
             Err(e) if k == 0 => return Err(e),
