@@ -11,7 +11,7 @@ use ergohand::anatomy::Side;
 use ergohand::geometry::Point;
 use ergohand::grasp::autograsp::{autograsp, root_for, squeeze, AutograspOptions};
 use ergohand::grasp::contact::{contacts, vertex_areas, ContactOptions, PartShape};
-use ergohand::grasp::hold::{hold_mesh, hold_test_hand};
+use ergohand::grasp::hold::{hold_mesh, hold_test_hand, HoldRun};
 use ergohand::grasp::parts::{mesh_sdf, Part};
 use ergohand::grasp::placement::placement_search;
 use ergohand::grasp::plan::{fit_thumb_to_pads, grasp_plan};
@@ -106,7 +106,7 @@ fn grasp_bench(c: &mut Criterion) {
         })
     });
     gr.bench_function("hold_test_power_bottle", |b| {
-        b.iter(|| hold_test_hand(&hand, black_box(&held), &part, 0.3, 0.5).unwrap())
+        b.iter(|| hold_test_hand(&hand, black_box(&held), &part, 0.3, 0.5, HoldRun::Whole).unwrap())
     });
     // The precision plan fitted to the hand, once per scene: a fraction of one autograsp.
     let tripod = grasp_plan(GraspType::Tripod);

@@ -45,10 +45,22 @@ pub struct HoldTrial {
     /// came on ([`comes_to_rest`]); `None` when the trial ran its whole duration or the part
     /// passed the limit.
     pub at_rest_s: Option<f64>,
-    /// Stopped because the part had dropped in another direction ([`hold_verdict_hand`]): the
+    /// Stopped because the part had dropped in another direction ([`HoldRun::UntilDrop`]): the
     /// displacement is where it had got to, and `holds` says only that it had not dropped yet.
     #[serde(skip_serializing_if = "std::ops::Not::not")]
     pub cut_short: bool,
+}
+
+/// How far [`hold_test_hand`] runs its six directions.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum HoldRun {
+    /// Every direction to its end: the whole report.
+    Whole,
+    /// For a caller that needs only whether the grasp holds (a placement dropped when it does
+    /// not): the directions still running stop as soon as the part drops in one of them
+    /// ([`HoldTrial::cut_short`]). `holds` is the same as [`HoldRun::Whole`]'s; the
+    /// displacements of the directions cut short are not.
+    UntilDrop,
 }
 
 /// Result of [`hold_test`].
@@ -88,40 +100,15 @@ pub(crate) const BALL_CELL_MM: f64 = 3.0;
 /// kinematic balls of [`SKIN_BALL_MM`] radius, each sunk by its radius along the skin's
 /// inward normal so that its surface is the skin's. Unlike a convex hull per link, balls keep
 /// the palm's and the finger's concave shape: a hull would fill the cup of the palm, which
-/// the part occupies. The forearm has no collider.
+/// the part occupies. The forearm has no collider. `run`: every direction to its end, or only
+/// until the part drops in one ([`HoldRun`]).
 pub fn hold_test_hand(
     hand: &dyn PosableHand,
     posed: &[Point],
     part: &PartShape,
     mass_kg: f64,
     mu: f64,
-) -> Result<HoldReport> {
-    skin_ball_trials(hand, posed, part, mass_kg, mu, false)
-}
-
-/// [`hold_test_hand`] for a caller that needs only whether the grasp holds (a placement that
-/// will be dropped when it does not): the directions still running stop as soon as the part
-/// drops in one of them ([`HoldTrial::cut_short`]). `holds` is the same as
-/// [`hold_test_hand`]'s; the displacements of the directions cut short are not.
-pub fn hold_verdict_hand(
-    hand: &dyn PosableHand,
-    posed: &[Point],
-    part: &PartShape,
-    mass_kg: f64,
-    mu: f64,
-) -> Result<HoldReport> {
-    skin_ball_trials(hand, posed, part, mass_kg, mu, true)
-}
-
-/// The skin balls of [`hold_test_hand`] and their trials, all six to the end or (`verdict`)
-/// until the part drops in one.
-fn skin_ball_trials(
-    hand: &dyn PosableHand,
-    posed: &[Point],
-    part: &PartShape,
-    mass_kg: f64,
-    mu: f64,
-    verdict: bool,
+    run: HoldRun,
 ) -> Result<HoldReport> {
     let mesh = TriMesh {
         vertices: posed.to_vec(),
@@ -165,7 +152,7 @@ fn skin_ball_trials(
                 .build()
         })
         .collect();
-    run_trials(colliders, &centres, part, mass_kg, mu, verdict)
+    run_trials(colliders, &centres, part, mass_kg, mu, run)
 }
 
 /// Parts with more triangles than this get a coarser collision mesh in the hold test.
@@ -241,18 +228,18 @@ pub fn hold_test(
         })
         .collect();
     let pts: Vec<Point> = used.iter().flat_map(|p| p.iter().copied()).collect();
-    run_trials(hulls, &pts, part, mass_kg, mu, false)
+    run_trials(hulls, &pts, part, mass_kg, mu, HoldRun::Whole)
 }
 
 /// The six trials with the hand's `colliders` (mm points `pts` on them locate the part's
-/// triangles to keep); with `verdict`, those still running stop when one drops.
+/// triangles to keep), as `run` says.
 fn run_trials(
     hulls: Vec<Collider>,
     pts: &[Point],
     part: &PartShape,
     mass_kg: f64,
     mu: f64,
-    verdict: bool,
+    run: HoldRun,
 ) -> Result<HoldReport> {
     use rayon::prelude::*;
     let duration_s = 1.0;
@@ -386,7 +373,7 @@ fn run_trials(
             let mut at_rest = None;
             let mut cut_short = false;
             for k in 0..steps {
-                if verdict && dropped.load(std::sync::atomic::Ordering::Relaxed) {
+                if run == HoldRun::UntilDrop && dropped.load(std::sync::atomic::Ordering::Relaxed) {
                     cut_short = true;
                     break;
                 }
@@ -667,10 +654,13 @@ mod tests {
         );
         let mut pts = Vec::new();
         h.pose_vertices(&pose, &mut pts);
-        let r = hold_test_hand(&h, &pts, &part, mass, mu).unwrap();
+        let r = hold_test_hand(&h, &pts, &part, mass, mu, HoldRun::Whole).unwrap();
         assert!(r.holds, "{r:?}");
-        // Nothing drops, so the verdict runs every direction to its end.
-        assert_eq!(hold_verdict_hand(&h, &pts, &part, mass, mu).unwrap(), r);
+        // Nothing drops, so a run until a drop runs every direction to its end.
+        assert_eq!(
+            hold_test_hand(&h, &pts, &part, mass, mu, HoldRun::UntilDrop).unwrap(),
+            r
+        );
 
         // The index fingertip of the pinch preshape: the skin vertex furthest along the distal
         // phalanx, and a cylinder across that direction sunk SQUEEZE_MM into it.
@@ -714,11 +704,11 @@ mod tests {
             "{}",
             c.max_depth_mm()
         );
-        let r = hold_test_hand(&h, &pts, &part, mass, mu).unwrap();
+        let r = hold_test_hand(&h, &pts, &part, mass, mu, HoldRun::Whole).unwrap();
         assert!(!r.holds, "{r:?}");
-        // The verdict agrees; each direction it ran to its end is the full test's (every
+        // A run until a drop agrees; each direction it ran to its end is the full test's (every
         // direction is a world of its own), the others stopped short of it.
-        let v = hold_verdict_hand(&h, &pts, &part, mass, mu).unwrap();
+        let v = hold_test_hand(&h, &pts, &part, mass, mu, HoldRun::UntilDrop).unwrap();
         assert!(!v.holds, "{v:?}");
         assert!(v.trials.iter().any(|t| !t.holds && !t.cut_short), "{v:?}");
         for (a, b) in v.trials.iter().zip(&r.trials) {

@@ -239,8 +239,8 @@ struct Attempt {
 }
 
 /// Close `hand` on `part` from `approach` (the grasp frame in the world): [`autograsp`], the
-/// [`autograsp::squeeze`], [`evaluate`], the finger-finger check and the hold test (with
-/// `verdict_only`, [`hold::hold_verdict_hand`]: for a runner-up, kept only when it holds).
+/// [`autograsp::squeeze`], [`evaluate`], the finger-finger check and the hold test, run as
+/// `run` says.
 fn grasp_from(
     scene: &Scene,
     hand: &dyn PosableHand,
@@ -248,7 +248,7 @@ fn grasp_from(
     plan: &plan::GraspPlan,
     approach: &nalgebra::Isometry3<f64>,
     areas: &[f64],
-    verdict_only: bool,
+    run: hold::HoldRun,
 ) -> Result<Attempt> {
     let mut timings = Timings::default();
     let clock = std::time::Instant::now();
@@ -275,17 +275,13 @@ fn grasp_from(
     // on one core), which nothing else waits for: it is built beside the hold test.
     let (hold, volume) = rayon::join(
         || {
-            let test = if verdict_only {
-                hold::hold_verdict_hand
-            } else {
-                hold::hold_test_hand
-            };
-            test(
+            hold::hold_test_hand(
                 hand,
                 &hand_mesh.vertices,
                 part,
                 scene.mass_kg,
                 scene.friction,
+                run,
             )
         },
         || {
@@ -434,7 +430,12 @@ pub fn run_scene_on(
     for (k, (slide, approach)) in approaches.iter().enumerate() {
         // The best is reported whether it holds or not; a runner-up only when it holds, so its
         // hold test may stop at the first drop.
-        let attempt = grasp_from(scene, hand, part, &plan, approach, &areas, k > 0);
+        let run = if k == 0 {
+            hold::HoldRun::Whole
+        } else {
+            hold::HoldRun::UntilDrop
+        };
+        let attempt = grasp_from(scene, hand, part, &plan, approach, &areas, run);
         let attempt = match attempt {
             Ok(a) => a,
             Err(e) if k == 0 => return Err(e),

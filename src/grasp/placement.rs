@@ -479,27 +479,8 @@ pub fn placement_search(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::grasp::contact::Contact;
+    use crate::grasp::quality::tests::scattered_contacts;
     use crate::grasp::quality::{cone_wrenches, epsilon, quality};
-
-    /// `n` contacts on a 20 mm sphere pushing roughly toward its centre.
-    fn scattered(rng: &mut Rng, n: usize) -> Vec<Contact> {
-        (0..n)
-            .map(|_| {
-                let d = rng.unit_vector();
-                let tilt = Vec3::from_fn(|_, _| rng.range(-0.3, 0.3));
-                let n = (-d + tilt).normalize();
-                Contact {
-                    link: "PALM".into(),
-                    link_index: 0,
-                    point: (d * 20.0).into(),
-                    normal: n.into(),
-                    depth_mm: 0.5,
-                    area_mm2: 10.0,
-                }
-            })
-            .collect()
-    }
 
     /// The lazy ranking against the eager one it replaces: every candidate's volume from its
     /// whole hull (0 with force closure) and one sort by pads, epsilon, volume and area. Same
@@ -512,7 +493,7 @@ mod tests {
         let mut eager = Vec::new();
         for i in 0..40 {
             let w = cone_wrenches(
-                &scattered(&mut rng, 2 + i % 7),
+                &scattered_contacts(&mut rng, 2 + i % 7),
                 0.5,
                 &Point::origin(),
                 20.0,

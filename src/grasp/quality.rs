@@ -136,7 +136,7 @@ pub fn grasp_epsilon(contacts: &[Contact], mu: f64, com: &Point, rho: f64) -> Ep
 const FORCE_CLOSURE_MIN: f64 = 1e-9;
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
     use crate::geometry::convex_hull_6d::{hyperplane, D};
     use crate::rng::Rng;
@@ -378,7 +378,7 @@ mod tests {
 
     /// Point contacts scattered over a sphere of radius 20 mm around the centre of mass,
     /// pushing roughly inward (normals tilted by up to 0.3 rad), as a grasp's patches are.
-    fn scattered_contacts(rng: &mut Rng, n: usize) -> Vec<Contact> {
+    pub(crate) fn scattered_contacts(rng: &mut Rng, n: usize) -> Vec<Contact> {
         (0..n)
             .map(|_| {
                 let d = rng.unit_vector();
