@@ -202,9 +202,11 @@ fn settle(ranked: &mut [Screened], from: usize, upto: usize) -> usize {
     use rayon::prelude::*;
     let mut g = from;
     while g < upto.min(ranked.len()) {
-        let key = |s: &Screened| (s.score.1, s.score.2.to_bits());
-        let k = key(&ranked[g]);
-        let e = g + ranked[g..].iter().take_while(|s| key(s) == k).count();
+        let first = ranked[g].score;
+        let e = g + ranked[g..]
+            .iter()
+            .take_while(|s| by_pads_and_epsilon(&s.score, &first).is_eq())
+            .count();
         if e - g > 1 {
             ranked[g..e].par_iter_mut().for_each(|s| {
                 if let Some(w) = s.wrenches.take() {
@@ -229,18 +231,18 @@ fn rank_all(mut scored: Vec<Screened>) -> Vec<Score> {
 
 /// Sort by pads and epsilon, best first, ties to the lower index (volumes left to [`settle`]).
 fn sort_by_pads_and_epsilon(scored: &mut [Screened]) {
-    scored.sort_by(|a, b| {
-        (b.score.1.cmp(&a.score.1))
-            .then(b.score.2.total_cmp(&a.score.2))
-            .then(a.score.0.cmp(&b.score.0))
-    });
+    scored.sort_by(|a, b| by_pads_and_epsilon(&b.score, &a.score).then(a.score.0.cmp(&b.score.0)));
+}
+
+/// The first keys of [`by_quality`]: pads touching, then epsilon.
+fn by_pads_and_epsilon(a: &Score, b: &Score) -> std::cmp::Ordering {
+    a.1.cmp(&b.1).then(a.2.total_cmp(&b.2))
 }
 
 /// The order of [`closed_quality`]'s scores, the index aside: pads touching, then epsilon,
 /// then volume (which only grasps without force closure have), then contact area.
 fn by_quality(a: &Score, b: &Score) -> std::cmp::Ordering {
-    a.1.cmp(&b.1)
-        .then(a.2.total_cmp(&b.2))
+    by_pads_and_epsilon(a, b)
         .then(a.3.total_cmp(&b.3))
         .then(a.4.total_cmp(&b.4))
 }
