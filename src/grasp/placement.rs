@@ -82,12 +82,61 @@ pub fn support_placement(
     ))
 }
 
+/// Where a power grasp's candidates put the part under the palm: its surface point facing the
+/// palm this far proximal of the MCP row (mm, the mean of the four fingers' MCP centres along
+/// the grasp frame's y), drawn uniformly per candidate. A power grip holds a handle across the
+/// distal palm, over the heads of the metacarpals (Napier 1956; Cutkosky 1989), so that the
+/// proximal phalanges close onto it first: a straight finger swinging about its MCP meets a
+/// cylinder that touches the palm `c` proximal of the joint at `c` along the finger, and the
+/// grasp frame's origin at the palm's centre (40-50 mm proximal) put that beyond the proximal
+/// phalanx, so that the fingers met the part with their middle and distal phalanges and hooked.
+/// The range is the one whose screening wrapped the drill on most of the dev hands (README,
+/// "Power grasps placed under the distal palm").
+pub const POWER_REACH_MM: [f64; 2] = [0.0, 20.0];
+
+/// A candidate placement of a power grasp: the grasp frame oriented and set off the part as by
+/// [`placement`], then moved along its own y (toward the wrist) by `ahead_mm`, so that the part's
+/// surface where the palm meets it lies `ahead_mm` distal of the frame's origin, under the
+/// distal palm (see [`POWER_REACH_MM`]).
+pub fn power_placement(
+    part: &PartShape,
+    dir: &Vec3,
+    roll: f64,
+    gap_mm: f64,
+    ahead_mm: f64,
+) -> Option<Isometry3<f64>> {
+    Some(placement(part, dir, roll, gap_mm)? * Translation3::new(0.0, -ahead_mm, 0.0))
+}
+
+/// How far the MCP row lies distal of the [`grasp_frame`]'s origin, mm: the mean of the four
+/// fingers' MCP centres along the frame's y.
+pub fn mcp_row_ahead(hand: &dyn PosableHand) -> f64 {
+    use crate::anatomy::Joint;
+    let to_frame = grasp_frame(hand).inverse();
+    let sk = hand.skeleton();
+    [Joint::IMcp, Joint::MMcp, Joint::RMcp, Joint::LMcp]
+        .iter()
+        .map(|&j| (to_frame * sk.centre(j)).y)
+        .sum::<f64>()
+        / 4.0
+}
+
+/// How far a closed grasp envelops the part, the first key of a power grasp's placement
+/// ranking: 1 for the palm touching, plus the fingers wrapped with all three phalanges (up to
+/// [`super::contact::WRAP_FINGERS`]), so that a grasp that [wraps](super::contact::Envelope)
+/// ranks first.
+fn envelope_rank(e: &super::contact::Envelope) -> usize {
+    usize::from(e.palm) + e.fingers_wrapped.len().min(super::contact::WRAP_FINGERS)
+}
+
 /// Result of [`placement_search`].
 #[derive(Clone, Debug)]
 pub struct PlacementResult {
     /// Best approach (grasp frame in the part's world frame).
     pub approach: Isometry3<f64>,
-    /// How many of the plan's [`GraspPlan::pads`] touch the part in it (full evaluation).
+    /// How many of the plan's [`GraspPlan::pads`] touch the part in it (full evaluation); for a
+    /// power grasp, how far it envelops the part (the palm touching counts 1, each finger
+    /// wrapped with all three phalanges 1, up to three).
     pub pads_touching: usize,
     /// Its epsilon (full evaluation).
     pub epsilon: f64,
@@ -130,8 +179,9 @@ fn starts_deep_inside(
 /// [`Screened`]), the contacts measured on every `stride`-th skin vertex (each standing for
 /// `stride` vertices' area) and the friction cones linearised with `edges` edges; epsilon and
 /// volume of the pads' contacts alone for a plan with [`GraspPlan::pads`]; with `squeezed`,
-/// measured after the [`squeeze`], as the scene is. `None` when the autograsp refuses the
-/// start.
+/// measured after the [`squeeze`], as the scene is; with `envelope_first`, the first key is how
+/// far the grasp envelops the part ([`envelope_rank`]) instead of the pads touching. `None`
+/// when the autograsp refuses the start.
 #[allow(clippy::too_many_arguments)]
 fn closed_quality(
     hand: &dyn PosableHand,
@@ -143,6 +193,7 @@ fn closed_quality(
     sample: &(Vec<usize>, Vec<usize>, Vec<f64>),
     edges: usize,
     squeezed: bool,
+    envelope_first: bool,
     index: usize,
 ) -> Option<Screened> {
     let g = autograsp(hand, part, plan, root, opts).ok()?;
@@ -167,14 +218,19 @@ fn closed_quality(
         .collect();
     let w = super::quality::cone_wrenches(&held, mu, &part.centre_of_mass, part.max_radius, edges);
     let e = super::quality::epsilon(&w);
-    let pads = plan.pads.iter().filter(|l| c.touches(l.index())).count();
+    let pads = if envelope_first {
+        envelope_rank(&c.envelope())
+    } else {
+        plan.pads.iter().filter(|l| c.touches(l.index())).count()
+    };
     Some(Screened {
         score: (index, pads, e.epsilon, 0.0, c.total_area_mm2()),
         wrenches: (!e.force_closure).then_some(w),
     })
 }
 
-/// A candidate's score: (its index, pads of the plan touching, epsilon, volume, contact area).
+/// A candidate's score: (its index, pads of the plan touching or, ranking by the envelope, its
+/// [`envelope_rank`], epsilon, volume, contact area).
 type Score = (usize, usize, f64, f64, f64);
 
 /// A scored candidate whose volume quality may still be missing: a grasp without force
@@ -252,8 +308,10 @@ fn by_quality(a: &Score, b: &Score) -> std::cmp::Ordering {
 /// `time_limit_s`) by the coarse autograsp and scored on every [`SCREEN_STRIDE`]-th vertex
 /// with [`SCREEN_CONE_EDGES`]-edge cones, a start deep inside the part rejected by the voxel
 /// grid; then down that ranking, `finalists` at a time until `finalists` succeed, closed by
-/// the default autograsp, squeezed and scored in full. Returns the finalists' scores, best
-/// first (ties to the lower index), and how many candidates were screened.
+/// the default autograsp, squeezed and scored in full. `envelope_first`: the first ranking key
+/// is how far the grasp envelops the part ([`envelope_rank`]) instead of the plan's pads.
+/// Returns the finalists' scores, best first (ties to the lower index), and how many
+/// candidates were screened.
 #[allow(clippy::too_many_arguments)]
 fn screen_and_rank(
     hand: &dyn PosableHand,
@@ -264,6 +322,7 @@ fn screen_and_rank(
     approach_of: &(dyn Fn(usize) -> Option<Isometry3<f64>> + Sync),
     finalists: usize,
     time_limit_s: f64,
+    envelope_first: bool,
 ) -> (Vec<Score>, usize) {
     use rayon::prelude::*;
     let gf = grasp_frame(hand);
@@ -284,7 +343,19 @@ fn screen_and_rank(
     let coarse_sample = skin_sample(hand, SCREEN_STRIDE);
     let root_of = |i: usize| Some(approach_of(i)? * gf.inverse());
     let score = |i: usize, root, opts: &AutograspOptions, sample: &_, edges, squeezed| {
-        closed_quality(hand, part, plan, mu, root, opts, sample, edges, squeezed, i)
+        closed_quality(
+            hand,
+            part,
+            plan,
+            mu,
+            root,
+            opts,
+            sample,
+            edges,
+            squeezed,
+            envelope_first,
+            i,
+        )
     };
     let scored: Vec<Option<Screened>> = (0..n)
         .into_par_iter()
@@ -385,6 +456,7 @@ pub fn slide_search(
         &|i| Some(at(offsets[i])),
         SLIDE_FINALISTS,
         f64::INFINITY,
+        false,
     );
     finals
         .iter()
@@ -405,8 +477,14 @@ fn skin_sample(hand: &dyn PosableHand, stride: usize) -> (Vec<usize>, Vec<usize>
 /// rolls uniform), screened cheaply, the best few evaluated in full; the result is the best of
 /// the full evaluations by (pads touching, epsilon, volume, contact area).
 ///
-/// A plan without [`GraspPlan::pads`] (power) is placed with the palm 3 mm off the part
-/// ([`placement`]); a precision plan with its [`pad_point`] in the part ([`pad_placement`]); a
+/// A wrapping plan (power, [`GraspPlan::wrap`]) is placed with the palm 3 mm off the part and
+/// the part under the distal palm ([`power_placement`], [`POWER_REACH_MM`]), and its
+/// candidates rank first by how far they envelop the part (the palm, then the fingers wrapped
+/// with all three phalanges; [`super::contact::Envelope`]): a power grasp holds the part against
+/// the palm with the fingers wrapped round it (Cutkosky 1989), and epsilon alone preferred grasps
+/// by the fingertips with the palm off the part, which hold too but are not the grasp a person
+/// makes; another plan without pads with the palm 3 mm off the part ([`placement`]); a
+/// precision plan with its [`pad_point`] in the part ([`pad_placement`]); a
 /// plan with a [`GraspPlan::support`] (lateral) with the part resting on the support where the
 /// thumb's closing line through the centre of mass leaves it ([`support_placement`]). Candidates
 /// of a plan with pads rank first by how many of its pads touch the part, and
@@ -444,11 +522,18 @@ pub fn placement_search(
             )
         })
         .collect();
+    // A stream of its own, so that the other grasp types' candidates stay those of their seed.
+    let mut reach = Rng::new(seed).fork("power reach");
+    let mcp = mcp_row_ahead(hand);
+    let ahead: Vec<f64> = (0..candidates)
+        .map(|_| mcp - reach.range(POWER_REACH_MM[0], POWER_REACH_MM[1]))
+        .collect();
     let pad = pad_point(hand, plan);
     let press = press_travel(hand, plan);
     let approach_of = |i: usize| match (&pad, &press) {
         (Some(p), Some(n)) => support_placement(part, &cand[i].0, cand[i].1, p, n),
         (Some(p), None) => pad_placement(part, &cand[i].0, cand[i].1, p),
+        (None, _) if plan.wrap => power_placement(part, &cand[i].0, cand[i].1, 3.0, ahead[i]),
         (None, _) => placement(part, &cand[i].0, cand[i].1, 3.0),
     };
     let (finals, evaluated) = screen_and_rank(
@@ -460,6 +545,7 @@ pub fn placement_search(
         &approach_of,
         FINALISTS,
         time_limit_s,
+        plan.wrap,
     );
     log::debug!(
         "placement search: {evaluated} of {candidates} candidates screened, {} finalists",
@@ -483,6 +569,64 @@ mod tests {
     use super::*;
     use crate::grasp::quality::tests::scattered_contacts;
     use crate::grasp::quality::{cone_wrenches, epsilon, quality};
+
+    /// A power candidate is the plain placement moved toward the wrist along its own y: the
+    /// part's surface that the plain placement's frame looked at, 3 mm along its palmar axis,
+    /// lies `ahead` distal of the moved frame's origin, for any direction and roll.
+    #[test]
+    fn power_placement_puts_the_part_ahead_of_the_frame() {
+        use crate::grasp::parts::Part;
+        let part = PartShape::new(Part::Bottle.mesh().unwrap()).unwrap().0;
+        let mut rng = Rng::new(11);
+        for _ in 0..20 {
+            let (dir, roll, ahead) = (
+                rng.unit_vector(),
+                rng.range(0.0, 6.28),
+                rng.range(0.0, 50.0),
+            );
+            let Some(plain) = placement(&part, &dir, roll, 3.0) else {
+                continue;
+            };
+            let moved = power_placement(&part, &dir, roll, 3.0, ahead).unwrap();
+            assert!((moved.rotation.angle_to(&plain.rotation)).abs() < 1e-12);
+            let probe = moved * Point::new(0.0, ahead, 0.0);
+            assert!((probe - Point::from(plain.translation.vector)).norm() < 1e-9);
+            let palmar = moved.rotation * Vec3::z();
+            let toi = part.ray_cast(&probe, &palmar).unwrap();
+            assert!((toi - 3.0).abs() < 1e-6, "{toi}");
+        }
+    }
+
+    /// The template's power grasp of the drill, searched as `scenes/drill.toml` does: the
+    /// finalist ranked first wraps the grip (palm and three fingers with every phalanx), checked
+    /// on the full evaluation of its approach, not on the ranking's own key; searched from the
+    /// palm's centre by epsilon alone, as before, the template held the drill by its fingertips
+    /// with the palm off.
+    #[test]
+    fn a_power_search_wraps_the_drill_grip() {
+        use crate::anatomy::Side;
+        use crate::grasp::autograsp::root_for;
+        use crate::grasp::contact::{contacts, vertex_areas};
+        use crate::grasp::hand::RigidHand;
+        use crate::grasp::parts::Part;
+        use crate::grasp::plan::grasp_plan;
+        use crate::grasp::scene::GraspType;
+        let hand = RigidHand::template(Side::Right).unwrap();
+        let part = PartShape::new(Part::Drill.mesh().unwrap()).unwrap().0;
+        let plan = grasp_plan(GraspType::Power);
+        let r = placement_search(&hand, &part, &plan, 0.5, 1, 300, f64::INFINITY).unwrap();
+        let opts = AutograspOptions::default();
+        let root = root_for(&hand, &Isometry3::identity(), &r.approach);
+        let g = autograsp(&hand, &part, &plan, root, &opts).unwrap();
+        let (pose, _, _) = squeeze(&hand, &part, &plan, &g, &opts);
+        let mut pts = Vec::new();
+        hand.pose_vertices(&pose, &mut pts);
+        let areas = vertex_areas(hand.rest_mesh());
+        let c = contacts(&part, &pts, hand.vertex_link(), &areas, &opts.contact);
+        let e = c.envelope();
+        assert!(e.wraps, "{e:?}");
+        assert_eq!(r.pads_touching, envelope_rank(&e));
+    }
 
     /// The lazy ranking against the eager one it replaces: every candidate's volume from its
     /// whole hull (0 with force closure) and one sort by pads, epsilon, volume and area. Same
