@@ -18,14 +18,7 @@ pub fn placement(part: &PartShape, dir: &Vec3, roll: f64, gap_mm: f64) -> Option
     let far = part.centre_of_mass + d * (part.max_radius + 50.0);
     let toi = part.ray_cast(&far, &-d)?;
     let hit = far - d * toi;
-    let z = -d;
-    let helper = if z.z.abs() < 0.9 {
-        Vec3::z()
-    } else {
-        Vec3::x()
-    };
-    let x0 = helper.cross(&z).normalize();
-    let y0 = z.cross(&x0);
+    let (x0, y0, z) = unrolled_axes(&d);
     let (s, c) = roll.sin_cos();
     let x = x0 * c + y0 * s;
     let y = z.cross(&x);
@@ -34,6 +27,18 @@ pub fn placement(part: &PartShape, dir: &Vec3, roll: f64, gap_mm: f64) -> Option
         Translation3::from((hit + d * gap_mm).coords),
         UnitQuaternion::from_rotation_matrix(&rot),
     ))
+}
+
+/// The axes of a grasp frame looking along `-d` (a unit vector) at roll 0: x, y, z = `-d`.
+fn unrolled_axes(d: &Vec3) -> (Vec3, Vec3, Vec3) {
+    let z = -d;
+    let helper = if z.z.abs() < 0.9 {
+        Vec3::z()
+    } else {
+        Vec3::x()
+    };
+    let x0 = helper.cross(&z).normalize();
+    (x0, z.cross(&x0), z)
 }
 
 /// A candidate placement of a precision grasp: the grasp frame oriented as by [`placement`]
@@ -106,6 +111,59 @@ pub fn power_placement(
     ahead_mm: f64,
 ) -> Option<Isometry3<f64>> {
     Some(placement(part, dir, roll, gap_mm)? * Translation3::new(0.0, -ahead_mm, 0.0))
+}
+
+/// Radius of the part's surface about a candidate's contact point that [`wrap_axis`] reads, mm:
+/// about a hand's breadth across the fingers' reach round a handle.
+pub const WRAP_AXIS_RADIUS_MM: f64 = 30.0;
+
+/// Largest angle between a power grasp's MCP row and the handle's axis among the candidates,
+/// degrees: a handle lies obliquely across the palm, from the hypothenar toward the base of the
+/// index (Napier 1956), not square to the fingers.
+pub const POWER_OBLIQUE_DEG: f64 = 30.0;
+
+/// The axis the part's surface curves about within `radius_mm` of `at`, the one a power grasp's
+/// fingers wrap round: the direction along which its normals do not turn (the eigenvector of
+/// least eigenvalue of the area-weighted scatter of the face normals there, which is zero along
+/// a cylinder's axis). `None` where the surface curves about no single axis: flat (the normals
+/// spread by less than about 13°, second eigenvalue under 0.05) or curved both ways (least
+/// eigenvalue above a third of the second).
+pub fn wrap_axis(part: &PartShape, at: &Point, radius_mm: f64) -> Option<Vec3> {
+    let mut scatter = nalgebra::Matrix3::<f64>::zeros();
+    let mut total = 0.0;
+    let v = &part.mesh.vertices;
+    for (f, n) in part.mesh.faces.iter().zip(&part.face_normals) {
+        let (a, b, c) = (v[f[0]], v[f[1]], v[f[2]]);
+        let centre = Point::from((a.coords + b.coords + c.coords) / 3.0);
+        if (centre - at).norm() > radius_mm {
+            continue;
+        }
+        let area = 0.5 * (b - a).cross(&(c - a)).norm();
+        scatter += n * n.transpose() * area;
+        total += area;
+    }
+    if total <= 0.0 {
+        return None;
+    }
+    let eig = nalgebra::SymmetricEigen::new(scatter / total);
+    let mut order = [0, 1, 2];
+    order.sort_by(|&i, &j| eig.eigenvalues[j].total_cmp(&eig.eigenvalues[i]));
+    let (second, least) = (eig.eigenvalues[order[1]], eig.eigenvalues[order[2]]);
+    if second < 0.05 || least > second / 3.0 {
+        return None;
+    }
+    Some(eig.eigenvectors.column(order[2]).into_owned())
+}
+
+/// The roll of [`placement`] that lays the grasp frame's x (across the palm, along the MCP row)
+/// along `axis` seen from `dir`; `None` when `axis` is along `dir`.
+fn roll_along(dir: &Vec3, axis: &Vec3) -> Option<f64> {
+    let (x0, y0, z) = unrolled_axes(&dir.try_normalize(1e-12)?);
+    let a = axis - z * z.dot(axis);
+    if a.norm() < 1e-6 {
+        return None;
+    }
+    Some(a.dot(&y0).atan2(a.dot(&x0)))
 }
 
 /// How far the MCP row lies distal of the [`grasp_frame`]'s origin, mm: the mean of the four
@@ -523,17 +581,36 @@ pub fn placement_search(
         })
         .collect();
     // A stream of its own, so that the other grasp types' candidates stay those of their seed.
-    let mut reach = Rng::new(seed).fork("power reach");
+    let mut draw = Rng::new(seed).fork("power reach");
     let mcp = mcp_row_ahead(hand);
-    let ahead: Vec<f64> = (0..candidates)
-        .map(|_| mcp - reach.range(POWER_REACH_MM[0], POWER_REACH_MM[1]))
+    let oblique = POWER_OBLIQUE_DEG.to_radians();
+    // Per candidate: how far the MCP row lies ahead of the part, and the roll off the
+    // handle's axis (either way round: the thumb toward either end).
+    let power: Vec<(f64, f64)> = (0..candidates)
+        .map(|_| {
+            let ahead = mcp - draw.range(POWER_REACH_MM[0], POWER_REACH_MM[1]);
+            let off = draw.range(-oblique, oblique);
+            let flip = if draw.range(0.0, 1.0) < 0.5 { 0.0 } else { std::f64::consts::PI };
+            (ahead, off + flip)
+        })
         .collect();
+    // Where the part curves about an axis (a handle), the MCP row lies along it; elsewhere the
+    // candidate's own roll.
+    let power_roll = |i: usize| {
+        let (dir, roll) = cand[i];
+        placement(part, &dir, roll, 0.0)
+            .and_then(|at| wrap_axis(part, &Point::from(at.translation.vector), WRAP_AXIS_RADIUS_MM))
+            .and_then(|axis| roll_along(&dir, &axis))
+            .map_or(roll, |r| r + power[i].1)
+    };
     let pad = pad_point(hand, plan);
     let press = press_travel(hand, plan);
     let approach_of = |i: usize| match (&pad, &press) {
         (Some(p), Some(n)) => support_placement(part, &cand[i].0, cand[i].1, p, n),
         (Some(p), None) => pad_placement(part, &cand[i].0, cand[i].1, p),
-        (None, _) if plan.wrap => power_placement(part, &cand[i].0, cand[i].1, 3.0, ahead[i]),
+        (None, _) if plan.wrap => {
+            power_placement(part, &cand[i].0, power_roll(i), 3.0, power[i].0)
+        }
         (None, _) => placement(part, &cand[i].0, cand[i].1, 3.0),
     };
     let (finals, evaluated) = screen_and_rank(
@@ -595,6 +672,27 @@ mod tests {
             let toi = part.ray_cast(&probe, &palmar).unwrap();
             assert!((toi - 3.0).abs() < 1e-6, "{toi}");
         }
+    }
+
+    /// The axis a power grasp wraps round, against shapes whose answer is known: along the
+    /// bottle's axis on its side (and square to the view, so the MCP row lies along it from
+    /// any side), none on a box's face (flat) or on a sphere (curved both ways).
+    #[test]
+    fn wrap_axis_is_a_cylinders_axis_and_nothing_elsewhere() {
+        use crate::grasp::parts::Part;
+        let bottle = PartShape::new(Part::Bottle.mesh().unwrap()).unwrap().0;
+        for phi in [0.0f64, 1.0, 2.5, 4.0] {
+            let dir = Vec3::new(phi.cos(), phi.sin(), 0.0);
+            let at = Point::new(30.0 * dir.x, 30.0 * dir.y, 100.0);
+            let axis = wrap_axis(&bottle, &at, WRAP_AXIS_RADIUS_MM).unwrap();
+            assert!(axis.z.abs() > 0.999, "{axis:?}");
+            let roll = roll_along(&dir, &axis).unwrap();
+            let frame = placement(&bottle, &dir, roll, 3.0).unwrap();
+            assert!((frame.rotation * Vec3::x()).z.abs() > 0.999);
+        }
+        assert_eq!(wrap_axis(&bottle, &Point::new(0.0, 0.0, 0.0), WRAP_AXIS_RADIUS_MM), None);
+        let ball = PartShape::new(crate::geometry::mesh::tests::icosphere(40.0, 4)).unwrap().0;
+        assert_eq!(wrap_axis(&ball, &Point::new(0.0, 40.0, 0.0), WRAP_AXIS_RADIUS_MM), None);
     }
 
     /// The template's power grasp of the drill, searched as `scenes/drill.toml` does: the
