@@ -590,7 +590,11 @@ pub fn placement_search(
         .map(|_| {
             let ahead = mcp - draw.range(POWER_REACH_MM[0], POWER_REACH_MM[1]);
             let off = draw.range(-oblique, oblique);
-            let flip = if draw.range(0.0, 1.0) < 0.5 { 0.0 } else { std::f64::consts::PI };
+            let flip = if draw.range(0.0, 1.0) < 0.5 {
+                0.0
+            } else {
+                std::f64::consts::PI
+            };
             (ahead, off + flip)
         })
         .collect();
@@ -599,7 +603,13 @@ pub fn placement_search(
     let power_roll = |i: usize| {
         let (dir, roll) = cand[i];
         placement(part, &dir, roll, 0.0)
-            .and_then(|at| wrap_axis(part, &Point::from(at.translation.vector), WRAP_AXIS_RADIUS_MM))
+            .and_then(|at| {
+                wrap_axis(
+                    part,
+                    &Point::from(at.translation.vector),
+                    WRAP_AXIS_RADIUS_MM,
+                )
+            })
             .and_then(|axis| roll_along(&dir, &axis))
             .map_or(roll, |r| r + power[i].1)
     };
@@ -608,9 +618,7 @@ pub fn placement_search(
     let approach_of = |i: usize| match (&pad, &press) {
         (Some(p), Some(n)) => support_placement(part, &cand[i].0, cand[i].1, p, n),
         (Some(p), None) => pad_placement(part, &cand[i].0, cand[i].1, p),
-        (None, _) if plan.wrap => {
-            power_placement(part, &cand[i].0, power_roll(i), 3.0, power[i].0)
-        }
+        (None, _) if plan.wrap => power_placement(part, &cand[i].0, power_roll(i), 3.0, power[i].0),
         (None, _) => placement(part, &cand[i].0, cand[i].1, 3.0),
     };
     let (finals, evaluated) = screen_and_rank(
@@ -658,7 +666,7 @@ mod tests {
         for _ in 0..20 {
             let (dir, roll, ahead) = (
                 rng.unit_vector(),
-                rng.range(0.0, 6.28),
+                rng.range(0.0, std::f64::consts::TAU),
                 rng.range(0.0, 50.0),
             );
             let Some(plain) = placement(&part, &dir, roll, 3.0) else {
@@ -690,9 +698,17 @@ mod tests {
             let frame = placement(&bottle, &dir, roll, 3.0).unwrap();
             assert!((frame.rotation * Vec3::x()).z.abs() > 0.999);
         }
-        assert_eq!(wrap_axis(&bottle, &Point::new(0.0, 0.0, 0.0), WRAP_AXIS_RADIUS_MM), None);
-        let ball = PartShape::new(crate::geometry::mesh::tests::icosphere(40.0, 4)).unwrap().0;
-        assert_eq!(wrap_axis(&ball, &Point::new(0.0, 40.0, 0.0), WRAP_AXIS_RADIUS_MM), None);
+        assert_eq!(
+            wrap_axis(&bottle, &Point::new(0.0, 0.0, 0.0), WRAP_AXIS_RADIUS_MM),
+            None
+        );
+        let ball = PartShape::new(crate::geometry::mesh::tests::icosphere(40.0, 4))
+            .unwrap()
+            .0;
+        assert_eq!(
+            wrap_axis(&ball, &Point::new(0.0, 40.0, 0.0), WRAP_AXIS_RADIUS_MM),
+            None
+        );
     }
 
     /// The template's power grasp of the drill, searched as `scenes/drill.toml` does: the
