@@ -1381,7 +1381,7 @@ fn grasp_glb_carries_normals_and_distances(path: &Path) {
     }
 }
 
-/// `ergohand grasp` as a product designer runs it: the shipped bottle scene (given approach)
+/// `ergohand grasp` as a product designer runs it: the shipped bottle scene (placement search)
 /// writes `grasp.json` with the keys, a GLB whose hand and part carry the contact map
 /// as vertex colours, and a PNG; a scene with an unknown grasp type or a part in metres gets a
 /// one-line error or a warning naming the scene, the field and the value, and writes nothing.

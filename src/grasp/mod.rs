@@ -772,19 +772,27 @@ mod tests {
         SkinnedHand::new(h).unwrap()
     }
 
-    /// The bottle's given approach is the template's: from exactly there a hand 15 % shorter
-    /// drops the bottle in the hold test; with the scene's slide along the palm it closes at
-    /// another place, force closure, and holds.
+    /// A given approach is one hand's place (here the template's bottle grasp from its side,
+    /// which synth's grasp trials use): from exactly there a hand 15 % shorter drops the bottle
+    /// in the hold test; sliding along its palm up to 15 mm it closes at another place, force
+    /// closure, and holds. The shipped scene, which searches, holds it and wraps it (palm and
+    /// three fingers with every phalanx).
     #[test]
     fn a_shorter_hand_slides_along_its_palm_to_hold_the_bottle() {
         let small = scaled_template(SHORTER);
         let mut fixed = shipped_scene("bottle");
-        assert!(fixed.slide_mm > 0.0);
+        assert_eq!(fixed.approach, scene::Approach::Auto);
+        fixed.approach = scene::Approach::Given(scene::pose_from(
+            [-35.0, -42.0, 90.0],
+            [-90.0, -90.0, 0.0],
+        ));
         fixed.slide_mm = 0.0;
         let r = run_scene(&fixed, &small).unwrap().report;
         assert!(!r.holds, "{:?}", r.hold_test);
         assert_eq!(r.approach_slide_mm, None);
-        let r = run_scene(&shipped_scene("bottle"), &small).unwrap().report;
+        let mut sliding = fixed.clone();
+        sliding.slide_mm = 15.0;
+        let r = run_scene(&sliding, &small).unwrap().report;
         assert!(
             r.force_closure && r.holds,
             "{} {:?}",
@@ -794,6 +802,8 @@ mod tests {
         let slide = r.approach_slide_mm.unwrap();
         assert!(slide != 0.0 && slide.abs() <= 15.0, "{slide}");
         assert_eq!(slide % placement::SLIDE_STEP_MM, 0.0);
+        let r = run_scene(&shipped_scene("bottle"), &small).unwrap().report;
+        assert!(r.holds && r.envelope.wraps, "{:?} {:?}", r.envelope, r.hold_test);
     }
 
     /// The pen in a lateral (key) pinch: held between the thumb's distal pad and the radial

@@ -25,7 +25,7 @@ use crate::error::{Error, Result};
 use crate::geometry::{Point, TriMesh, Vec3};
 use crate::grasp::hand::{PosableHand, SkinnedHand};
 use crate::grasp::parts::Part;
-use crate::grasp::scene::{parse_scene, Approach, Scene};
+use crate::grasp::scene::{parse_scene, Scene};
 use crate::mocap::trajectories::Trajectories;
 use crate::rng::Rng;
 use crate::skeleton::forward_kinematics::{link_transforms, posed_skeleton};
@@ -42,7 +42,7 @@ pub const MOTION_S_RANGE: (f64, f64) = (1.0, 60.0);
 
 /// A grasp the simulator can perform: a shipped scene (embedded, so that the simulator needs no
 /// files) and its part's exact signed distance.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq)]
 pub struct GraspTask {
     /// The motion's name (`[motions]` key, file stem).
     pub name: &'static str,
@@ -52,6 +52,10 @@ pub struct GraspTask {
     pub scene_text: &'static str,
     /// Its part.
     pub part: Part,
+    /// Where the simulated person puts the right hand's grasp frame in the part's frame:
+    /// translation (mm) and rotation (degrees, as a scene's `approach`). The person's own, not
+    /// the scene's, which may leave the approach to the placement search.
+    pub approach: ([f64; 3], [f64; 3]),
 }
 
 /// The grasp trials `synth` writes.
@@ -60,6 +64,9 @@ pub const GRASP_TASKS: [GraspTask; 1] = [GraspTask {
     scene_file: "bottle.toml",
     scene_text: include_str!("../../scenes/bottle.toml"),
     part: Part::Bottle,
+    // The palm 12 mm from the bottle's side (radius 30), facing its axis, 35 mm toward the wrist
+    // so that the axis lies under the distal palm and the fingers wrap horizontally.
+    approach: ([-35.0, -42.0, 90.0], [-90.0, -90.0, 0.0]),
 }];
 
 /// Phase boundaries as fractions of the trial: (name, start, end).
@@ -495,29 +502,21 @@ fn grasp_frame(sk: &Skeleton, skin: &TriMesh) -> Isometry3<f64> {
     crate::grasp::plan::palm_grasp_frame(sk, skin.vertices.iter())
 }
 
-/// The scene's approach for `side`: scenes give it for a right hand; a left hand takes its
-/// mirror image through the part's x = 0 plane (the shipped grasp parts are symmetric about it),
-/// with the grasp frame's x flipped to keep it right-handed.
-fn approach_for(scene: &Scene, side: Side) -> Result<Isometry3<f64>> {
-    let a = match scene.approach {
-        Approach::Given(a) => a,
-        Approach::Auto => {
-            return Err(Error::input(
-                &scene.path,
-                "grasp.approach: the simulated grasp needs a given approach, not \"auto\"",
-            ))
-        }
-    };
+/// The task's approach for `side`: given for a right hand; a left hand takes its mirror image
+/// through the part's x = 0 plane (the shipped grasp parts are symmetric about it), with the
+/// grasp frame's x flipped to keep it right-handed.
+fn approach_for(task: &GraspTask, side: Side) -> Isometry3<f64> {
+    let a = crate::grasp::scene::pose_from(task.approach.0, task.approach.1);
     if side == Side::Right {
-        return Ok(a);
+        return a;
     }
     let s = Matrix3::from_diagonal(&Vec3::new(-1.0, 1.0, 1.0));
     let r = s * a.rotation.to_rotation_matrix().into_inner() * s;
     let t = s * a.translation.vector;
-    Ok(Isometry3::from_parts(
+    Isometry3::from_parts(
         Translation3::from(t),
         UnitQuaternion::from_rotation_matrix(&Rotation3::from_matrix_unchecked(r)),
-    ))
+    )
 }
 
 /// Inputs of [`simulate_grasp`] that come from the simulated subject.
@@ -562,7 +561,7 @@ pub fn simulate_grasp(
     }
     let sk = inp.skeleton;
     let part_pose = scene.part_pose;
-    let approach = approach_for(&scene, sk.side)?;
+    let approach = approach_for(task, sk.side);
     let g = grasp_frame(sk, inp.hand.rest_mesh());
     // The hand's rigid motion that puts its grasp frame at the scene's approach.
     let at_approach = part_pose * approach * g.inverse();
