@@ -782,10 +782,8 @@ mod tests {
         let small = scaled_template(SHORTER);
         let mut fixed = shipped_scene("bottle");
         assert_eq!(fixed.approach, scene::Approach::Auto);
-        fixed.approach = scene::Approach::Given(scene::pose_from(
-            [-35.0, -42.0, 90.0],
-            [-90.0, -90.0, 0.0],
-        ));
+        fixed.approach =
+            scene::Approach::Given(scene::pose_from([-35.0, -42.0, 90.0], [-90.0, -90.0, 0.0]));
         fixed.slide_mm = 0.0;
         let r = run_scene(&fixed, &small).unwrap().report;
         assert!(!r.holds, "{:?}", r.hold_test);
@@ -803,7 +801,12 @@ mod tests {
         assert!(slide != 0.0 && slide.abs() <= 15.0, "{slide}");
         assert_eq!(slide % placement::SLIDE_STEP_MM, 0.0);
         let r = run_scene(&shipped_scene("bottle"), &small).unwrap().report;
-        assert!(r.holds && r.envelope.wraps, "{:?} {:?}", r.envelope, r.hold_test);
+        assert!(
+            r.holds && r.envelope.wraps,
+            "{:?} {:?}",
+            r.envelope,
+            r.hold_test
+        );
     }
 
     /// The pen in a lateral (key) pinch: held between the thumb's distal pad and the radial
