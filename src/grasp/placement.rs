@@ -131,13 +131,17 @@ pub const POWER_OBLIQUE_DEG: f64 = 30.0;
 pub fn wrap_axis(part: &PartShape, at: &Point, radius_mm: f64) -> Option<Vec3> {
     let mut scatter = nalgebra::Matrix3::<f64>::zeros();
     let mut total = 0.0;
-    let v = &part.mesh.vertices;
-    for (f, n) in part.mesh.faces.iter().zip(&part.face_normals) {
-        let (a, b, c) = (v[f[0]], v[f[1]], v[f[2]]);
+    // A face whose centre lies within the radius has its nearest point within it too: the
+    // tree's range query finds them all, in face order, without visiting the whole part.
+    let mut near = Vec::new();
+    part.tree.faces_within(at, radius_mm, &mut near);
+    for &(f, _) in &near {
+        let [a, b, c] = part.mesh.corners(f);
         let centre = Point::from((a.coords + b.coords + c.coords) / 3.0);
         if (centre - at).norm() > radius_mm {
             continue;
         }
+        let n = &part.face_normals[f];
         let area = 0.5 * (b - a).cross(&(c - a)).norm();
         scatter += n * n.transpose() * area;
         total += area;
