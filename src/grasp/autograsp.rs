@@ -887,7 +887,7 @@ mod tests {
         let part = bottle();
         let mut open = PartShape::new(Part::Bottle.mesh().unwrap()).unwrap().0;
         open.touch_grid = NearGrid::new(&part.mesh, 100.0, part.closed);
-        // The power grasp of scenes/bottle.toml, and the hand further round the bottle.
+        // The bottle grasp of synth's grasp trials, and the hand further round the bottle.
         let approaches = [
             crate::grasp::scene::pose_from([-35.0, -42.0, 90.0], [-90.0, -90.0, 0.0]),
             side_approach(),

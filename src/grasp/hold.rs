@@ -631,7 +631,8 @@ mod tests {
         use nalgebra::{Isometry3, Translation3, UnitQuaternion};
         let h = SkinnedHand::template(Side::Right).unwrap();
         let (mass, mu) = (0.5, 0.5);
-        // The bottle grasp of synth's grasp trials (the shipped scene's given approach before it searched).
+        // The bottle grasp of synth's grasp trials (the shipped scene's given approach until it
+        // searched).
         let part = cylinder();
         let approach = crate::grasp::scene::pose_from([-35.0, -42.0, 90.0], [-90.0, -90.0, 0.0]);
         let plan = grasp_plan(GraspType::Power);

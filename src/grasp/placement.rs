@@ -96,7 +96,7 @@ pub fn support_placement(
 /// grasp frame's origin at the palm's centre (40-50 mm proximal) put that beyond the proximal
 /// phalanx, so that the fingers met the part with their middle and distal phalanges and hooked.
 /// The range is the one whose screening wrapped the drill on most of the dev hands (README,
-/// "Power grasps placed under the distal palm").
+/// "Power grasps placed on a handle").
 pub const POWER_REACH_MM: [f64; 2] = [0.0, 20.0];
 
 /// A candidate placement of a power grasp: the grasp frame oriented and set off the part as by
@@ -539,8 +539,9 @@ fn skin_sample(hand: &dyn PosableHand, stride: usize) -> (Vec<usize>, Vec<usize>
 /// rolls uniform), screened cheaply, the best few evaluated in full; the result is the best of
 /// the full evaluations by (pads touching, epsilon, volume, contact area).
 ///
-/// A wrapping plan (power, [`GraspPlan::wrap`]) is placed with the palm 3 mm off the part and
-/// the part under the distal palm ([`power_placement`], [`POWER_REACH_MM`]), and its
+/// A wrapping plan (power, [`GraspPlan::wrap`]) is placed with the palm 3 mm off the part, the
+/// part under the distal palm ([`power_placement`], [`POWER_REACH_MM`]) and, where the part
+/// curves about an axis, the MCP row along it ([`wrap_axis`], [`POWER_OBLIQUE_DEG`]), and its
 /// candidates rank first by how far they envelop the part (the palm, then the fingers wrapped
 /// with all three phalanges; [`super::contact::Envelope`]): a power grasp holds the part against
 /// the palm with the fingers wrapped round it (Cutkosky 1989), and epsilon alone preferred grasps
@@ -688,7 +689,7 @@ mod tests {
 
     /// The axis a power grasp wraps round, against shapes whose answer is known: along the
     /// bottle's axis on its side (and square to the view, so the MCP row lies along it from
-    /// any side), none on a box's face (flat) or on a sphere (curved both ways).
+    /// any side), none on the bottle's flat base or on a sphere (curved both ways).
     #[test]
     fn wrap_axis_is_a_cylinders_axis_and_nothing_elsewhere() {
         use crate::grasp::parts::Part;
