@@ -11,7 +11,7 @@ use ergohand::anatomy::Side;
 use ergohand::geometry::Point;
 use ergohand::grasp::autograsp::{autograsp, root_for, squeeze, AutograspOptions};
 use ergohand::grasp::contact::{contacts, vertex_areas, ContactOptions, PartShape};
-use ergohand::grasp::hold::{hold_mesh, hold_test_hand, HoldRun};
+use ergohand::grasp::hold::{hold_test_hand, HoldRun};
 use ergohand::grasp::parts::{mesh_sdf, Part};
 use ergohand::grasp::placement::placement_search;
 use ergohand::grasp::plan::{fit_thumb_to_pads, grasp_plan};
@@ -94,17 +94,10 @@ fn grasp_bench(c: &mut Criterion) {
         b.iter(|| autograsp(&hand, &part, &plan, black_box(root), &opts).unwrap())
     });
     // The hold test of the squeezed power grasp (six gravity directions, two at a time on two
-    // cores) against the part simplified for it, and that simplification (once per scene; the
-    // bench builds the part's query structures afresh each time, since the result is cached).
+    // cores).
     let squeezed = squeeze(&hand, &part, &plan, &g, &opts).0;
     let mut held = Vec::new();
     hand.pose_vertices(&squeezed, &mut held);
-    gr.bench_function("hold_mesh_bottle", |b| {
-        b.iter(|| {
-            let fresh = PartShape::new(part.mesh.clone()).unwrap().0;
-            hold_mesh(&fresh).n_faces()
-        })
-    });
     gr.bench_function("hold_test_power_bottle", |b| {
         b.iter(|| hold_test_hand(&hand, black_box(&held), &part, 0.3, 0.5, HoldRun::Whole).unwrap())
     });

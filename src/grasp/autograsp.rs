@@ -113,8 +113,8 @@ struct LinkState {
     touches: bool,
 }
 
-/// The state of `link` posed by `t` (its vertices written into `buf`); vertices the broad
-/// phase puts deep inside count as `search` deep.
+/// The state of `link` posed by `t`, measured on every `opts.stride`-th of its vertices (those
+/// written into `buf`); vertices the broad phase puts deep inside count as `search` deep.
 fn link_state(
     hand: &dyn PosableHand,
     part: &PartShape,
@@ -124,7 +124,8 @@ fn link_state(
     buf: &mut Vec<Point>,
 ) -> LinkState {
     use super::contact::Probe;
-    hand.pose_link(link, t, buf);
+    let stride = opts.stride.max(1);
+    hand.pose_link_every(link, stride, t, buf);
     let mut s = LinkState {
         depth: f64::MIN,
         touches: false,
@@ -132,12 +133,11 @@ fn link_state(
     if buf.is_empty() || !link_near(part, buf, opts.contact.search_mm) {
         return s;
     }
-    let stride = opts.stride.max(1);
     // Skin farther out than the tolerance neither touches nor presses: every depth it could
     // give is below the thresholds the closing compares with (all positive), so it is skipped
     // without its exact projection, about half of those the coarser broad phase lets through.
     let touch = (part.touch_grid.band >= opts.contact.tolerance_mm).then_some(&part.touch_grid);
-    for p in buf.iter().step_by(stride) {
+    for p in buf.iter() {
         if touch.is_some_and(|g| g.zone(p) == super::broad::Zone::Outside) {
             continue;
         }

@@ -46,8 +46,6 @@ pub struct PartShape {
     /// A finer broad phase whose band is the default contact tolerance ([`TOUCH_BAND_MM`]): the
     /// closing's checks skip the skin it puts outside, which neither touches nor presses.
     pub touch_grid: NearGrid,
-    /// The hold test's collision mesh, made on first use ([`super::hold::hold_mesh`]).
-    pub(crate) hold_mesh: std::sync::OnceLock<TriMesh>,
 }
 
 /// Band of the broad phase, mm: queries with a search radius up to this skip the exact
@@ -153,7 +151,6 @@ impl PartShape {
                 hi,
                 grid,
                 touch_grid,
-                hold_mesh: std::sync::OnceLock::new(),
             },
             warnings,
         ))

@@ -37,6 +37,22 @@ pub trait PosableHand: Sync {
     /// The posed vertices of one link, in the order of [`PosableHand::link_vertices`]; the
     /// same positions [`PosableHand::pose_all`] gives them.
     fn pose_link(&self, link: usize, transforms: &[Isometry3<f64>], out: &mut Vec<Point>);
+    /// Every `stride`-th of the posed vertices of one link (the first, the `stride`-th, ... of
+    /// [`PosableHand::pose_link`]'s order), at the same positions: a thinned check need not
+    /// pose the vertices it skips.
+    fn pose_link_every(
+        &self,
+        link: usize,
+        stride: usize,
+        transforms: &[Isometry3<f64>],
+        out: &mut Vec<Point>,
+    ) {
+        self.pose_link(link, transforms, out);
+        if stride > 1 {
+            let kept: Vec<Point> = out.iter().step_by(stride).copied().collect();
+            *out = kept;
+        }
+    }
     /// Write the posed skin vertices (same order as [`PosableHand::rest_mesh`]) into `out`.
     fn pose_vertices(&self, pose: &Pose, out: &mut Vec<Point>) {
         let t = link_transforms(self.skeleton(), pose);
@@ -140,29 +156,47 @@ pub struct SkinnedHand {
     links: Vec<usize>,
     by_link: Vec<Vec<usize>>,
     link_bindings: Vec<SkinBinding>,
+    /// Per stride 2 to [`STRIDED_UP_TO`], one binding per link over its every stride-th vertex.
+    strided: Vec<Vec<SkinBinding>>,
+}
+
+/// Largest stride [`SkinnedHand`] keeps thinned link bindings for (larger ones pose the whole
+/// link and thin it).
+const STRIDED_UP_TO: usize = 8;
+
+/// One binding per link over every `stride`-th vertex it dominates.
+fn link_bindings(
+    hand: &IndividualHand,
+    by_link: &[Vec<usize>],
+    stride: usize,
+) -> Result<Vec<SkinBinding>> {
+    by_link
+        .iter()
+        .map(|vs| {
+            let vs: Vec<usize> = vs.iter().step_by(stride).copied().collect();
+            let rest: Vec<Point> = vs.iter().map(|&i| hand.skin.vertices[i]).collect();
+            let w: Vec<Vec<(usize, f64)>> = vs.iter().map(|&i| hand.weights[i].clone()).collect();
+            SkinBinding::new(&rest, &w, Link::ALL.len())
+        })
+        .collect()
 }
 
 impl SkinnedHand {
     /// Bind `hand` for posing.
     pub fn new(hand: IndividualHand) -> Result<SkinnedHand> {
-        let n = Link::ALL.len();
         let links = dominant_links(&hand.weights);
         let by_link = group_by_link(&links);
-        let link_bindings = by_link
-            .iter()
-            .map(|vs| {
-                let rest: Vec<Point> = vs.iter().map(|&i| hand.skin.vertices[i]).collect();
-                let w: Vec<Vec<(usize, f64)>> =
-                    vs.iter().map(|&i| hand.weights[i].clone()).collect();
-                SkinBinding::new(&rest, &w, n)
-            })
+        let per_link = link_bindings(&hand, &by_link, 1)?;
+        let strided = (2..=STRIDED_UP_TO)
+            .map(|s| link_bindings(&hand, &by_link, s))
             .collect::<Result<Vec<_>>>()?;
         Ok(SkinnedHand {
-            binding: SkinBinding::new(&hand.skin.vertices, &hand.weights, n)?,
+            binding: SkinBinding::new(&hand.skin.vertices, &hand.weights, Link::ALL.len())?,
             hand,
             links,
             by_link,
-            link_bindings,
+            link_bindings: per_link,
+            strided,
         })
     }
 
@@ -203,6 +237,23 @@ impl PosableHand for SkinnedHand {
     }
     fn pose_link(&self, link: usize, transforms: &[Isometry3<f64>], out: &mut Vec<Point>) {
         self.link_bindings[link].linear_into(transforms, out);
+    }
+    fn pose_link_every(
+        &self,
+        link: usize,
+        stride: usize,
+        transforms: &[Isometry3<f64>],
+        out: &mut Vec<Point>,
+    ) {
+        if stride <= 1 || stride > STRIDED_UP_TO {
+            self.pose_link(link, transforms, out);
+            if stride > 1 {
+                let kept: Vec<Point> = out.iter().step_by(stride).copied().collect();
+                *out = kept;
+            }
+            return;
+        }
+        self.strided[stride - 2][link].linear_into(transforms, out);
     }
 }
 
