@@ -48,15 +48,20 @@ pub trait PosableHand: Sync {
         out: &mut Vec<Point>,
     ) {
         self.pose_link(link, transforms, out);
-        if stride > 1 {
-            let kept: Vec<Point> = out.iter().step_by(stride).copied().collect();
-            *out = kept;
-        }
+        keep_every(out, stride);
     }
     /// Write the posed skin vertices (same order as [`PosableHand::rest_mesh`]) into `out`.
     fn pose_vertices(&self, pose: &Pose, out: &mut Vec<Point>) {
         let t = link_transforms(self.skeleton(), pose);
         self.pose_all(&t, out);
+    }
+}
+
+/// Keep every `stride`-th point of `out` (the first, the `stride`-th, ...).
+fn keep_every(out: &mut Vec<Point>, stride: usize) {
+    if stride > 1 {
+        let kept: Vec<Point> = out.iter().step_by(stride).copied().collect();
+        *out = kept;
     }
 }
 
@@ -245,15 +250,13 @@ impl PosableHand for SkinnedHand {
         transforms: &[Isometry3<f64>],
         out: &mut Vec<Point>,
     ) {
-        if stride <= 1 || stride > STRIDED_UP_TO {
-            self.pose_link(link, transforms, out);
-            if stride > 1 {
-                let kept: Vec<Point> = out.iter().step_by(stride).copied().collect();
-                *out = kept;
+        match stride.checked_sub(2).and_then(|k| self.strided.get(k)) {
+            Some(bindings) => bindings[link].linear_into(transforms, out),
+            None => {
+                self.pose_link(link, transforms, out);
+                keep_every(out, stride);
             }
-            return;
         }
-        self.strided[stride - 2][link].linear_into(transforms, out);
     }
 }
 
@@ -263,7 +266,7 @@ mod tests {
     use crate::anatomy::Joint;
 
     #[test]
-    fn skinned_hand_poses_like_the_pose_stage_and_per_link_like_whole() {
+    fn skinned_hand_poses_like_the_pose_stage_and_per_link_like_whole_thinned_or_not() {
         let h = SkinnedHand::template(Side::Right).unwrap();
         let mut pose = Pose::zero();
         pose.angles[Joint::IMcp.index()] = [60f64.to_radians(), 0.0, 0.0];
@@ -284,6 +287,21 @@ mod tests {
             assert_eq!(part.len(), h.link_vertices()[l].len());
             for (p, &i) in part.iter().zip(&h.link_vertices()[l]) {
                 assert!((p - all[i]).norm() < 1e-9);
+            }
+            // Thinned, through its own bindings or by thinning the whole link (stride 9):
+            // the same vertices at the same places.
+            for stride in 1..=STRIDED_UP_TO + 1 {
+                let mut thin = Vec::new();
+                h.pose_link_every(l, stride, &t, &mut thin);
+                let want: Vec<usize> = h.link_vertices()[l]
+                    .iter()
+                    .step_by(stride)
+                    .copied()
+                    .collect();
+                assert_eq!(thin.len(), want.len(), "link {l} stride {stride}");
+                for (p, &i) in thin.iter().zip(&want) {
+                    assert!((p - all[i]).norm() < 1e-9, "link {l} stride {stride}");
+                }
             }
         }
         // The blend differs from rigid posing near the flexed joint, not far from it.
