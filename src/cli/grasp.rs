@@ -315,11 +315,15 @@ pub fn grasp_population(
     for n in &names {
         check_output_dir(&out.join(n), &OUTPUT_FILES, "--out", &inputs)?;
     }
+    use rayon::prelude::*;
+    // Loaded side by side; the first folder that fails (in the order given) is the one named.
     let hands = folders
-        .iter()
+        .par_iter()
         .map(|f| load_hand(Some(f), s.side))
+        .collect::<Vec<_>>()
+        .into_iter()
         .collect::<Result<Vec<_>>>()?;
-    // One part for every hand: read, cleaned and indexed once, its hold mesh made once.
+    // One part for every hand: read, cleaned and indexed once.
     let (part, part_warnings) = crate::grasp::scene_part(&s, &s.part_pose)?;
     for w in &part_warnings {
         log::warn!("{w}");
@@ -333,9 +337,18 @@ pub fn grasp_population(
     let contact = ContactOptions::default();
     let mut touched = vec![0u32; part.mesh.n_vertices()];
     let mut grasped = 0;
-    for ((hand, name), folder) in hands.iter().zip(&names).zip(&folders) {
+    // The hands side by side on rayon's pool, which each scene's search and hold test share
+    // (a lone scene leaves cores idle in its serial parts); written in the order given.
+    let results: Vec<Result<GraspOutcome>> = hands
+        .par_iter()
+        .map(|hand| {
+            let r = run_scene_on(&s, hand, &part, &part_warnings);
+            bar.inc(1);
+            r
+        })
+        .collect();
+    for (((hand, name), folder), result) in hands.iter().zip(&names).zip(&folders).zip(results) {
         let dir = out.join(name);
-        let result = run_scene_on(&s, hand, &part, &part_warnings);
         if let Ok(o) = &result {
             grasped += 1;
             let hit = crate::grasp::population::part_vertices_touched(

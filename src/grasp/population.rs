@@ -77,7 +77,8 @@ pub struct HandOutcome {
     pub failure: Option<Failure>,
     /// The scene's error when no grasp was found.
     pub error: Option<String>,
-    /// Time of the scene, s.
+    /// Time of the scene, s (wall time; `grasp --models` runs hands side by side, so this is
+    /// the scene's time while the others share the cores, up to about twice a lone run's).
     pub time_s: f64,
 }
 
