@@ -843,7 +843,10 @@ mod tests {
         let part = bottle();
         let opts = AutograspOptions::default();
         // The power grasp of scenes/bottle.toml.
-        let approach = crate::grasp::scene::pose_from([-35.0, -42.0, 90.0], [-90.0, -90.0, 0.0]);
+        let approach = crate::grasp::scene::pose_from(
+            crate::grasp::parts::BOTTLE_SIDE_APPROACH.0,
+            crate::grasp::parts::BOTTLE_SIDE_APPROACH.1,
+        );
         let root = root_for(h, &Isometry3::identity(), &approach);
         let at = |plan: &GraspPlan| {
             let (r, s) = approach_to_contact(h, part, plan, root, &opts);
@@ -889,7 +892,10 @@ mod tests {
         open.touch_grid = NearGrid::new(&part.mesh, 100.0, part.closed);
         // The bottle grasp of synth's grasp trials, and the hand further round the bottle.
         let approaches = [
-            crate::grasp::scene::pose_from([-35.0, -42.0, 90.0], [-90.0, -90.0, 0.0]),
+            crate::grasp::scene::pose_from(
+                crate::grasp::parts::BOTTLE_SIDE_APPROACH.0,
+                crate::grasp::parts::BOTTLE_SIDE_APPROACH.1,
+            ),
             side_approach(),
         ];
         let plan = grasp_plan(GraspType::Power);

@@ -566,7 +566,10 @@ mod tests {
         // The bottle grasp of synth's grasp trials (the shipped scene's given approach until it
         // searched).
         let part = cylinder();
-        let approach = crate::grasp::scene::pose_from([-35.0, -42.0, 90.0], [-90.0, -90.0, 0.0]);
+        let approach = crate::grasp::scene::pose_from(
+            crate::grasp::parts::BOTTLE_SIDE_APPROACH.0,
+            crate::grasp::parts::BOTTLE_SIDE_APPROACH.1,
+        );
         let plan = grasp_plan(GraspType::Power);
         let opts = AutograspOptions::default();
         let root = root_for(&h, &Isometry3::identity(), &approach);

@@ -784,8 +784,10 @@ mod tests {
         let small = scaled_template(SHORTER);
         let mut fixed = shipped_scene("bottle");
         assert_eq!(fixed.approach, scene::Approach::Auto);
-        fixed.approach =
-            scene::Approach::Given(scene::pose_from([-35.0, -42.0, 90.0], [-90.0, -90.0, 0.0]));
+        fixed.approach = scene::Approach::Given(scene::pose_from(
+            parts::BOTTLE_SIDE_APPROACH.0,
+            parts::BOTTLE_SIDE_APPROACH.1,
+        ));
         fixed.slide_mm = 0.0;
         let r = run_scene(&fixed, &small).unwrap().report;
         assert!(!r.holds, "{:?}", r.hold_test);

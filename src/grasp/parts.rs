@@ -12,6 +12,12 @@ use crate::error::{Error, Result};
 use crate::geometry::marching_tetrahedra::{isosurface, Grid, FULL};
 use crate::geometry::{Point, TriMesh};
 
+/// The template's bottle grasp from the bottle's side, as a scene's `approach` (translation,
+/// mm; rotation, degrees): the palm 12 mm from the side (radius 30), facing its axis, 35 mm
+/// toward the wrist so that the axis lies under the distal palm and the fingers wrap
+/// horizontally. `synth`'s grasp trials hold the bottle from here.
+pub const BOTTLE_SIDE_APPROACH: ([f64; 3], [f64; 3]) = ([-35.0, -42.0, 90.0], [-90.0, -90.0, 0.0]);
+
 /// The five shipped parts.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Part {

@@ -64,9 +64,7 @@ pub const GRASP_TASKS: [GraspTask; 1] = [GraspTask {
     scene_file: "bottle.toml",
     scene_text: include_str!("../../scenes/bottle.toml"),
     part: Part::Bottle,
-    // The palm 12 mm from the bottle's side (radius 30), facing its axis, 35 mm toward the wrist
-    // so that the axis lies under the distal palm and the fingers wrap horizontally.
-    approach: ([-35.0, -42.0, 90.0], [-90.0, -90.0, 0.0]),
+    approach: crate::grasp::parts::BOTTLE_SIDE_APPROACH,
 }];
 
 /// Phase boundaries as fractions of the trial: (name, start, end).
