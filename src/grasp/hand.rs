@@ -161,8 +161,9 @@ pub struct SkinnedHand {
     links: Vec<usize>,
     by_link: Vec<Vec<usize>>,
     link_bindings: Vec<SkinBinding>,
-    /// Per stride 2 to [`STRIDED_UP_TO`], one binding per link over its every stride-th vertex.
-    strided: Vec<Vec<SkinBinding>>,
+    /// Per stride 2 to [`STRIDED_UP_TO`], one binding per link over its every stride-th vertex,
+    /// made the first time that stride is asked for (the screening uses one).
+    strided: [std::sync::OnceLock<Option<Vec<SkinBinding>>>; STRIDED_UP_TO - 1],
 }
 
 /// Largest stride [`SkinnedHand`] keeps thinned link bindings for (larger ones pose the whole
@@ -192,16 +193,13 @@ impl SkinnedHand {
         let links = dominant_links(&hand.weights);
         let by_link = group_by_link(&links);
         let per_link = link_bindings(&hand, &by_link, 1)?;
-        let strided = (2..=STRIDED_UP_TO)
-            .map(|s| link_bindings(&hand, &by_link, s))
-            .collect::<Result<Vec<_>>>()?;
         Ok(SkinnedHand {
             binding: SkinBinding::new(&hand.skin.vertices, &hand.weights, Link::ALL.len())?,
             hand,
             links,
             by_link,
             link_bindings: per_link,
-            strided,
+            strided: Default::default(),
         })
     }
 
@@ -250,7 +248,16 @@ impl PosableHand for SkinnedHand {
         transforms: &[Isometry3<f64>],
         out: &mut Vec<Point>,
     ) {
-        match stride.checked_sub(2).and_then(|k| self.strided.get(k)) {
+        // A subset of the bindings `new` made, so it binds as they did; were it to fail, the
+        // whole link is posed and thinned instead.
+        let thinned = stride
+            .checked_sub(2)
+            .and_then(|k| self.strided.get(k))
+            .and_then(|c| {
+                c.get_or_init(|| link_bindings(&self.hand, &self.by_link, stride).ok())
+                    .as_ref()
+            });
+        match thinned {
             Some(bindings) => bindings[link].linear_into(transforms, out),
             None => {
                 self.pose_link(link, transforms, out);
