@@ -177,6 +177,43 @@ pub struct FingerCollision {
     pub other: String,
 }
 
+/// Deepest link (index, depth in mm) more than [`START_DEPTH_MM`] inside the part with the
+/// links at `tr`, where [`autograsp`] refuses to start; `touched` gets which links touch.
+fn start_states(
+    hand: &dyn PosableHand,
+    part: &PartShape,
+    tr: &[Isometry3<f64>],
+    opts: &AutograspOptions,
+    buf: &mut Vec<Point>,
+    touched: &mut [bool; 17],
+) -> Option<(usize, f64)> {
+    let mut worst: Option<(usize, f64)> = None;
+    for (l, slot) in touched.iter_mut().enumerate() {
+        let s = link_state(hand, part, l, tr, opts, buf);
+        *slot = s.touches;
+        if s.depth > START_DEPTH_MM && worst.is_none_or(|w| s.depth > w.1) {
+            worst = Some((l, s.depth));
+        }
+    }
+    worst
+}
+
+/// Deepest a link may start inside the part for [`autograsp`] to close from there, mm.
+pub const START_DEPTH_MM: f64 = 2.0;
+
+/// Whether [`autograsp`] would start from `root` (no link more than [`START_DEPTH_MM`] inside
+/// the part in the plan's preshape).
+pub fn starts_clear(
+    hand: &dyn PosableHand,
+    part: &PartShape,
+    plan: &GraspPlan,
+    root: Isometry3<f64>,
+    opts: &AutograspOptions,
+) -> bool {
+    let tr = link_transforms(hand.skeleton(), &pose_at(plan, &[0.0; 16], root));
+    start_states(hand, part, &tr, opts, &mut Vec::new(), &mut [false; 17]).is_none()
+}
+
 /// GraspIt autograsp from `root` (see the module documentation), with finger-finger
 /// collisions: a closing step that would push a phalanx's skin more than
 /// [`AutograspOptions::finger_allowance_mm`] further into another finger's core
@@ -197,14 +234,7 @@ pub fn autograsp(
     let mut evaluations = 1;
     let tr = link_transforms(sk, &pose_at(plan, &t, root));
     let mut touched = [false; 17];
-    let mut worst: Option<(usize, f64)> = None;
-    for (l, slot) in touched.iter_mut().enumerate() {
-        let s = link_state(hand, part, l, &tr, opts, &mut buf);
-        *slot = s.touches;
-        if s.depth > 2.0 && worst.is_none_or(|w| s.depth > w.1) {
-            worst = Some((l, s.depth));
-        }
-    }
+    let worst = start_states(hand, part, &tr, opts, &mut buf, &mut touched);
     if let Some((l, d)) = worst {
         // The broad phase only bounds deep points: measure the deepest exactly for the message.
         hand.pose_link(l, &tr, &mut buf);

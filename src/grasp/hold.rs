@@ -74,6 +74,9 @@ pub struct HoldReport {
     /// Simulated time per direction at most (a trial ends early when the part passes the
     /// limit or comes to rest), s.
     pub duration_s: f64,
+    /// How far the part's centre of mass moved while the squeeze settled, before any gravity
+    /// (the trials' displacements are measured from where it settled), mm.
+    pub settle_mm: f64,
     /// Per direction.
     pub trials: Vec<HoldTrial>,
 }
@@ -87,6 +90,10 @@ pub(crate) const LENGTH_UNIT_M: f64 = 0.05;
 
 /// Natural frequency of rapier's contact springs in the hold test, Hz (critically damped).
 pub(crate) const CONTACT_HZ: f64 = 60.0;
+
+/// rapier's solver iterations per step in the hold test (its default is 4): with friction in
+/// the biased pass, four left a squeezed slab creeping 0.7 mm under gravity, twelve hold it.
+pub(crate) const SOLVER_ITERATIONS: usize = 12;
 
 /// Linear and angular damping of the part while it settles, 1/s (a time constant of 10 ms,
 /// two and a half steps): the squeeze's overlap is pushed out at up to rapier's corrective
@@ -276,6 +283,7 @@ fn run_trials(
         return Ok(HoldReport {
             holds: false,
             duration_s,
+            settle_mm: 0.0,
             trials,
         });
     };
@@ -292,6 +300,16 @@ fn run_trials(
     // Hand-sized bodies: rapier's tolerances are tuned for metre-sized ones (20 mm of
     // predictive contacts, 5 mm of slop), so its length unit is set to 5 cm.
     world.integration_parameters.length_unit = LENGTH_UNIT_M;
+    // The squeeze's overlap is pushed out in rapier's biased pass; by default friction acts only
+    // in the unbiased one, so that push met no friction and a squeezed part slid out sideways
+    // along faces pressed hard enough to hold it (a slab between two rows of pressed balls,
+    // pushed at its edge: 1.5 mm out, see the tests). Friction in both passes, and the solver
+    // iterations it needs to converge on a part pressed from every side.
+    world.integration_parameters.friction_in_bias_pass = true;
+    world.integration_parameters.num_solver_iterations = SOLVER_ITERATIONS;
+    // rapier reuses a pair's contacts until it has moved ten times its slop (2.5 mm at this
+    // length unit, more than the hold limit): every step's contacts are measured afresh.
+    world.integration_parameters.contact_recycling = false;
     // Contacts as critically damped springs of 60 Hz (rapier's default, 30 Hz with a
     // damping ratio of 10, is made for piles of bodies: so overdamped that a squeezed
     // part creeps out of the grip at about 2 mm/s). The skin's compliance is the
@@ -323,6 +341,7 @@ fn run_trials(
     for _ in 0..SETTLE_STEPS {
         world.step();
     }
+    let settle_mm = (world.bodies[body].position().transform_point(com) - com).length() * 1e3;
     let rb = &mut world.bodies[body];
     rb.set_linear_damping(0.0);
     rb.set_angular_damping(0.0);
@@ -373,13 +392,15 @@ fn run_trials(
         })
         .collect();
     log::debug!(
-        "hold test: world built {built_s:.2} s, settled {:.2} s, six directions {:.2} s",
+        "hold test: {} balls, world built {built_s:.2} s, settled {:.2} s ({settle_mm:.2} mm), six directions {:.2} s",
+        hulls.len(),
         settled_s - built_s,
         clock.elapsed().as_secs_f64() - settled_s
     );
     Ok(HoldReport {
         holds: trials.iter().all(|t| t.holds),
         duration_s,
+        settle_mm,
         trials,
     })
 }
@@ -502,6 +523,55 @@ mod tests {
         assert!(run(&|t| 0.2 * t).is_some());
         // Accelerating at 5 mm/s² from rest: 2.5 mm after 1 s.
         assert_eq!(run(&|t| 0.5 * 5.0 * t * t), None);
+    }
+
+    /// A slab (40 x 60 x 8 mm, 180 g) squeezed between two rows of skin balls pressed 1.5 mm
+    /// into its faces (49 a face) and pushed at one edge by 21 balls pressed as deep: each
+    /// contact's normal force grows alike with its overlap, so the faces' friction (mu 0.5, on
+    /// 98 contacts) can bear four times the edge's push (21): a solid slab stays where it is
+    /// and holds. Friction acting only in rapier's unbiased pass let the edge's push slide it
+    /// the whole 1.5 mm while settling.
+    #[test]
+    fn a_slab_pressed_at_its_edge_between_pressed_faces_stays_put() {
+        let m = super::super::parts::mesh_sdf(
+            |p| {
+                (p.x.abs() - 20.0)
+                    .max(p.y.abs() - 30.0)
+                    .max(p.z.abs() - 4.0)
+            },
+            Point::new(-21.0, -31.0, -5.0),
+            Point::new(21.0, 31.0, 5.0),
+            1.0,
+        )
+        .unwrap();
+        let part = PartShape::new(m).unwrap().0;
+        // Ball centres on the surface: each ball's surface its radius (1.5 mm) inside.
+        let mut centres = Vec::new();
+        for i in -3..=3 {
+            for j in -3..=3 {
+                let (x, y) = (i as f64 * 3.0, j as f64 * 3.0);
+                centres.push(Point::new(x, y, 4.0));
+                centres.push(Point::new(x, y, -4.0));
+            }
+        }
+        for j in -3..=3 {
+            for z in [-2.0, 0.0, 2.0] {
+                centres.push(Point::new(20.0, j as f64 * 3.0, z));
+            }
+        }
+        let balls: Vec<Collider> = centres
+            .iter()
+            .map(|c| {
+                ColliderBuilder::ball(SKIN_BALL_MM * 1e-3)
+                    .translation(v(c))
+                    .friction(0.5)
+                    .build()
+            })
+            .collect();
+        let r = run_trials(balls, &centres, &part, 0.18, 0.5, HoldRun::Whole).unwrap();
+        assert!(r.settle_mm < 0.3, "{r:?}");
+        assert!(r.holds, "{r:?}");
+        assert!(r.trials.iter().all(|t| t.displacement_mm < 0.1), "{r:?}");
     }
 
     fn cylinder() -> PartShape {

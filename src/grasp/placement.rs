@@ -3,7 +3,9 @@
 //! optimisation-based grasp posture generation of Endo et al.: sample, close, score, keep the
 //! best).
 
-use super::autograsp::{autograsp, pad_point, pose_at, press_travel, squeeze, AutograspOptions};
+use super::autograsp::{
+    autograsp, pad_point, pose_at, press_travel, squeeze, starts_clear, AutograspOptions,
+};
 use super::contact::PartShape;
 use super::hand::PosableHand;
 use super::plan::{grasp_frame, GraspPlan};
@@ -220,6 +222,12 @@ pub(crate) const SCREEN_CONE_EDGES: usize = 4;
 /// skipping those the full autograsp refuses).
 pub(crate) const FINALISTS: usize = 6;
 
+/// The screening stops once this many candidates have closed on the part.
+pub(crate) const SCREEN_CLOSED: usize = 128;
+
+/// Candidates screened at a time (in parallel) between checks of [`SCREEN_CLOSED`].
+pub(crate) const SCREEN_CHUNK: usize = 32;
+
 /// Whether any skin vertex at the preshape of `plan` from `root` lies inside the part deeper
 /// than the broad phase's band (every vertex, by the voxel grid alone: the autograsp would
 /// refuse such a start).
@@ -419,27 +427,48 @@ fn screen_and_rank(
             i,
         )
     };
-    let scored: Vec<Option<Screened>> = (0..n)
-        .into_par_iter()
-        .map_init(Vec::new, |buf, i| {
-            bar.inc(1);
-            if started.elapsed().as_secs_f64() > time_limit_s {
-                return None;
-            }
-            let root = root_of(i)?;
-            if starts_deep_inside(hand, part, plan, root, buf) {
-                return None;
-            }
-            score(i, root, &coarse, &coarse_sample, SCREEN_CONE_EDGES, false)
-        })
-        .collect();
+    // Candidates in index order, a chunk at a time (in parallel within a chunk), until
+    // `SCREEN_CLOSED` have closed: a sample that large ranks as well as every candidate would,
+    // and where few candidates close (a large flat part) the search still tries them all.
+    use std::sync::atomic::{AtomicUsize, Ordering::Relaxed};
+    let (no_place, deep) = (AtomicUsize::new(0), AtomicUsize::new(0));
+    let mut scored: Vec<Screened> = Vec::new();
+    let mut tried = 0;
+    while tried < n && scored.len() < SCREEN_CLOSED {
+        let end = (tried + SCREEN_CHUNK).min(n);
+        scored.extend(
+            (tried..end)
+                .into_par_iter()
+                .map_init(Vec::new, |buf, i| {
+                    bar.inc(1);
+                    if started.elapsed().as_secs_f64() > time_limit_s {
+                        return None;
+                    }
+                    let Some(root) = root_of(i) else {
+                        no_place.fetch_add(1, Relaxed);
+                        return None;
+                    };
+                    if starts_deep_inside(hand, part, plan, root, buf) {
+                        deep.fetch_add(1, Relaxed);
+                        return None;
+                    }
+                    score(i, root, &coarse, &coarse_sample, SCREEN_CONE_EDGES, false)
+                })
+                .collect::<Vec<_>>()
+                .into_iter()
+                .flatten(),
+        );
+        tried = end;
+    }
     bar.finish_and_clear();
-    let evaluated = scored.iter().filter(|s| s.is_some()).count();
+    let evaluated = scored.len();
+    let (no_place, deep) = (no_place.into_inner(), deep.into_inner());
     log::debug!(
-        "placement search: screening {:.2} s",
-        started.elapsed().as_secs_f64()
+        "placement search: screening {:.2} s: {tried} of {n} candidates tried, {evaluated} closed, {no_place} without a placement, {deep} starting inside the part, {} refused by the autograsp",
+        started.elapsed().as_secs_f64(),
+        tried - evaluated - no_place - deep,
     );
-    let mut ranked: Vec<Screened> = scored.into_iter().flatten().collect();
+    let mut ranked = scored;
     sort_by_pads_and_epsilon(&mut ranked);
     let full_sample = skin_sample(hand, 1);
     let full = AutograspOptions::default();
@@ -474,6 +503,46 @@ fn screen_and_rank(
         started.elapsed().as_secs_f64()
     );
     (finals, evaluated)
+}
+
+/// Step of [`backed_off`]'s retreat, mm.
+pub const BACK_OFF_STEP_MM: f64 = 4.0;
+
+/// Farthest [`backed_off`] moves an approach back, mm: well within a power grasp's approach to
+/// contact ([`GraspPlan::approach_mm`], 40 mm), which brings the palm back onto the part.
+pub const BACK_OFF_MAX_MM: f64 = 24.0;
+
+/// A power approach whose preshape starts inside the part moved back along its palmar axis, in
+/// [`BACK_OFF_STEP_MM`] steps up to [`BACK_OFF_MAX_MM`], to the first place the hand starts clear
+/// of it ([`starts_clear`]); the approach as given when it starts clear or nothing within reach
+/// does, or when the plan has no approach to contact to bring the hand back. A hand reaching for
+/// a part comes at it from outside: placed at the part's surface, the open hand's thumb or
+/// fingers of a large flat part (a phone laid on the palm) start inside it, and the candidate
+/// was lost, though the same placement reached from a little farther back closes well.
+pub fn backed_off(
+    hand: &dyn PosableHand,
+    part: &PartShape,
+    plan: &GraspPlan,
+    approach: Isometry3<f64>,
+    opts: &AutograspOptions,
+) -> Isometry3<f64> {
+    if plan.approach_mm <= 0.0 {
+        return approach;
+    }
+    let gf = grasp_frame(hand).inverse();
+    let axis = approach.rotation * Vec3::z();
+    let steps = (BACK_OFF_MAX_MM / BACK_OFF_STEP_MM).round() as usize;
+    let back = |k: usize| Translation3::from(-axis * (k as f64 * BACK_OFF_STEP_MM)) * approach;
+    let clear = |a: &Isometry3<f64>| starts_clear(hand, part, plan, a * gf, opts);
+    if clear(&approach) {
+        return approach;
+    }
+    // The farthest first: a part the open hand lies across (its plane through the fingers)
+    // stays in the way however far back the hand goes, and is given up after one check.
+    if !clear(&back(steps)) {
+        return approach;
+    }
+    (1..=steps).map(back).find(clear).unwrap_or(approach)
 }
 
 /// Spacing of the positions [`slide_search`] closes the hand at, mm.
@@ -618,12 +687,17 @@ pub fn placement_search(
             .and_then(|axis| roll_along(&dir, &axis))
             .map_or(roll, |r| r + power[i].1)
     };
+    let screen_opts = AutograspOptions {
+        stride: SCREEN_STRIDE,
+        ..AutograspOptions::default()
+    };
     let pad = pad_point(hand, plan);
     let press = press_travel(hand, plan);
     let approach_of = |i: usize| match (&pad, &press) {
         (Some(p), Some(n)) => support_placement(part, &cand[i].0, cand[i].1, p, n),
         (Some(p), None) => pad_placement(part, &cand[i].0, cand[i].1, p),
-        (None, _) if plan.wrap => power_placement(part, &cand[i].0, power_roll(i), 3.0, power[i].0),
+        (None, _) if plan.wrap => power_placement(part, &cand[i].0, power_roll(i), 3.0, power[i].0)
+            .map(|a| backed_off(hand, part, plan, a, &screen_opts)),
         (None, _) => placement(part, &cand[i].0, cand[i].1, 3.0),
     };
     let (finals, evaluated) = screen_and_rank(
@@ -690,6 +764,58 @@ mod tests {
     /// The axis a power grasp wraps round, against shapes whose answer is known: along the
     /// bottle's axis on its side (and square to the view, so the MCP row lies along it from
     /// any side), none on the bottle's flat base or on a sphere (curved both ways).
+    /// The phone laid on the template's palm from random sides: where the open hand starts
+    /// inside it, the power approach moves back along the palmar axis, by whole steps within
+    /// the limit, to where it starts clear (and not a step sooner); an approach that starts
+    /// clear, and any approach of a plan without an approach to contact, is kept as given.
+    #[test]
+    fn a_power_approach_starting_inside_the_part_backs_off_to_a_clear_start() {
+        use crate::anatomy::Side;
+        use crate::grasp::hand::RigidHand;
+        use crate::grasp::parts::Part;
+        use crate::grasp::plan::grasp_plan;
+        use crate::grasp::scene::GraspType;
+        let hand = RigidHand::template(Side::Right).unwrap();
+        let part = PartShape::new(Part::Phone.mesh().unwrap()).unwrap().0;
+        let (power, pinch) = (grasp_plan(GraspType::Power), grasp_plan(GraspType::Pinch));
+        let opts = AutograspOptions {
+            stride: SCREEN_STRIDE,
+            ..AutograspOptions::default()
+        };
+        let gf = grasp_frame(&hand).inverse();
+        let mut rng = Rng::new(5);
+        let (mut moved, mut kept) = (0, 0);
+        for _ in 0..40 {
+            let (dir, roll) = (rng.unit_vector(), rng.range(0.0, std::f64::consts::TAU));
+            let Some(a) = power_placement(&part, &dir, roll, 3.0, 10.0) else {
+                continue;
+            };
+            let clear = |x: &Isometry3<f64>| starts_clear(&hand, &part, &power, x * gf, &opts);
+            let b = backed_off(&hand, &part, &power, a, &opts);
+            assert_eq!(backed_off(&hand, &part, &pinch, a, &opts), a);
+            if clear(&a) {
+                assert_eq!(b, a);
+                kept += 1;
+                continue;
+            }
+            if b == a {
+                continue;
+            }
+            moved += 1;
+            assert!(clear(&b));
+            let back = b.translation.vector - a.translation.vector;
+            let axis = a.rotation * Vec3::z();
+            assert!((b.rotation.angle_to(&a.rotation)).abs() < 1e-12);
+            let d = -back.dot(&axis);
+            assert!((back + axis * d).norm() < 1e-9, "{back:?}");
+            let k = (d / BACK_OFF_STEP_MM).round();
+            assert!((d - k * BACK_OFF_STEP_MM).abs() < 1e-9 && d <= BACK_OFF_MAX_MM + 1e-9);
+            let one_less = Translation3::from(axis * BACK_OFF_STEP_MM) * b;
+            assert!(!clear(&one_less), "{d} mm back, clear a step sooner");
+        }
+        assert!(moved >= 5 && kept >= 1, "moved {moved}, kept {kept}");
+    }
+
     #[test]
     fn wrap_axis_is_a_cylinders_axis_and_nothing_elsewhere() {
         use crate::grasp::parts::Part;
