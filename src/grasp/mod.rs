@@ -234,14 +234,27 @@ struct Attempt {
     hand_mesh: TriMesh,
     finger_entry: f64,
     hold: hold::HoldReport,
-    /// The volume quality of the grasp wrench space.
-    volume: f64,
+    /// The volume quality of the grasp wrench space (`None` until a runner-up is kept).
+    volume: Option<f64>,
     timings: Timings,
+}
+
+/// The volume quality of the grasp wrench space of contacts `cs` on `part`.
+fn volume_of(scene: &Scene, part: &PartShape, cs: &ContactSet) -> f64 {
+    quality::grasp_quality(
+        &cs.contacts,
+        scene.friction,
+        &part.centre_of_mass,
+        part.max_radius,
+    )
+    .volume
 }
 
 /// Close `hand` on `part` from `approach` (the grasp frame in the world): [`autograsp`], the
 /// [`autograsp::squeeze`], [`evaluate`], the finger-finger check and the hold test, run as
-/// `run` says.
+/// `run` says; the volume quality beside the hold test with `volume`, else left to the caller
+/// (a runner-up's is wanted only when it holds and is kept).
+#[allow(clippy::too_many_arguments)]
 fn grasp_from(
     scene: &Scene,
     hand: &dyn PosableHand,
@@ -250,6 +263,7 @@ fn grasp_from(
     approach: &nalgebra::Isometry3<f64>,
     areas: &[f64],
     run: hold::HoldRun,
+    volume: bool,
 ) -> Result<Attempt> {
     let mut timings = Timings::default();
     let clock = std::time::Instant::now();
@@ -274,27 +288,22 @@ fn grasp_from(
     let clock = std::time::Instant::now();
     // The volume quality needs the whole hull of the grasp wrench space (a quarter of a second
     // on one core), which nothing else waits for: it is built beside the hold test.
-    let (hold, volume) = rayon::join(
-        || {
-            hold::hold_test_hand(
-                hand,
-                &hand_mesh.vertices,
-                part,
-                scene.mass_kg,
-                scene.friction,
-                run,
-            )
-        },
-        || {
-            quality::grasp_quality(
-                &cs.contacts,
-                scene.friction,
-                &part.centre_of_mass,
-                part.max_radius,
-            )
-            .volume
-        },
-    );
+    let hold_test = || {
+        hold::hold_test_hand(
+            hand,
+            &hand_mesh.vertices,
+            part,
+            scene.mass_kg,
+            scene.friction,
+            run,
+        )
+    };
+    let (hold, volume) = if volume {
+        let (h, v) = rayon::join(hold_test, || volume_of(scene, part, &cs));
+        (h, Some(v))
+    } else {
+        (hold_test(), None)
+    };
     let hold = hold?;
     timings.hold_s = clock.elapsed().as_secs_f64();
     Ok(Attempt {
@@ -436,7 +445,10 @@ pub fn run_scene_on(
         } else {
             hold::HoldRun::UntilDrop
         };
-        let attempt = grasp_from(scene, hand, part, &plan, approach, &areas, run);
+        // The first is reported whether it holds or not: its volume is built beside its hold
+        // test; a runner-up's only once it holds (the hull cost more than a hold test that
+        // drops at once).
+        let attempt = grasp_from(scene, hand, part, &plan, approach, &areas, run, k == 0);
         let attempt = match attempt {
             Ok(a) => a,
             Err(e) if k == 0 => return Err(e),
@@ -491,6 +503,12 @@ pub fn run_scene_on(
     timings.autograsp_s = own.autograsp_s;
     timings.evaluate_s = own.evaluate_s;
     timings.hold_s = own.hold_s;
+    let volume = volume.unwrap_or_else(|| {
+        let clock = std::time::Instant::now();
+        let v = volume_of(scene, part, &cs);
+        timings.evaluate_s += clock.elapsed().as_secs_f64();
+        v
+    });
     let dry: Vec<&str> = plan
         .pads
         .iter()
