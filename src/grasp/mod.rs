@@ -195,7 +195,7 @@ pub struct Timings {
     pub autograsp_s: f64,
     /// Contacts, grasp quality and the finger-finger check of the final posture.
     pub evaluate_s: f64,
-    /// The rapier hold test (the volume quality's whole hull is built beside it).
+    /// The rapier hold test (the first try's volume quality, a whole hull, is built beside it).
     pub hold_s: f64,
     /// The whole scene (with the contact map distances), s.
     pub total_s: f64,

@@ -374,8 +374,8 @@ fn by_quality(a: &Score, b: &Score) -> std::cmp::Ordering {
 }
 
 /// The placement search's two stages on candidate approaches `0..n` (`approach_of(i)`: the
-/// grasp frame in the part's world, `None` to skip): each screened (parallel, until
-/// `time_limit_s`) by the coarse autograsp and scored on every [`SCREEN_STRIDE`]-th vertex
+/// grasp frame in the part's world, `None` to skip): in index order until [`SCREEN_CLOSED`] have
+/// closed, each screened (parallel, until `time_limit_s`) by the coarse autograsp and scored on every [`SCREEN_STRIDE`]-th vertex
 /// with [`SCREEN_CONE_EDGES`]-edge cones, a start deep inside the part rejected by the voxel
 /// grid; then down that ranking, `finalists` at a time until `finalists` succeed, closed by
 /// the default autograsp, squeezed and scored in full. `envelope_first`: the first ranking key

@@ -27,7 +27,8 @@
 //! #                                #   slide along its palm up to this far either way, for
 //! #                                #   the best grasp of its own size
 //! seed = 1                       # placement search (approach = "auto"): seed,
-//! candidates = 1000              #   number of candidate placements,
+//! candidates = 1000              #   number of candidate placements (tried in order until
+//! #                                #   128 close on the part),
 //! time_limit_s = 15              #   and a bound on its time
 //! ```
 //!
