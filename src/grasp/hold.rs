@@ -92,7 +92,8 @@ pub(crate) const LENGTH_UNIT_M: f64 = 0.05;
 pub(crate) const CONTACT_HZ: f64 = 60.0;
 
 /// rapier's solver iterations per step in the hold test (its default is 4): with friction in
-/// the biased pass, four left a squeezed slab creeping 0.7 mm under gravity, twelve hold it.
+/// the biased pass too, four do not converge on a part pressed from every side, and it creeps
+/// under gravity where its friction could hold it.
 pub(crate) const SOLVER_ITERATIONS: usize = 12;
 
 /// Linear and angular damping of the part while it settles, 1/s (a time constant of 10 ms,
@@ -303,12 +304,13 @@ fn run_trials(
     // The squeeze's overlap is pushed out in rapier's biased pass; by default friction acts only
     // in the unbiased one, so that push met no friction and a squeezed part slid out sideways
     // along faces pressed hard enough to hold it (a slab between two rows of pressed balls,
-    // pushed at its edge: 1.5 mm out, see the tests). Friction in both passes, and the solver
-    // iterations it needs to converge on a part pressed from every side.
+    // pushed at its edge, slid the whole of the edge's overlap: see the tests). Friction in
+    // both passes, and the solver iterations it needs to converge on a part pressed from
+    // every side.
     world.integration_parameters.friction_in_bias_pass = true;
     world.integration_parameters.num_solver_iterations = SOLVER_ITERATIONS;
-    // rapier reuses a pair's contacts until it has moved ten times its slop (2.5 mm at this
-    // length unit, more than the hold limit): every step's contacts are measured afresh.
+    // rapier reuses a pair's contacts until it has moved ten times its slop, which at this
+    // length unit is more than the hold limit: every step's contacts are measured afresh.
     world.integration_parameters.contact_recycling = false;
     // Contacts as critically damped springs of 60 Hz (rapier's default, 30 Hz with a
     // damping ratio of 10, is made for piles of bodies: so overdamped that a squeezed

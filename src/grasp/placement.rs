@@ -509,7 +509,7 @@ fn screen_and_rank(
 pub const BACK_OFF_STEP_MM: f64 = 4.0;
 
 /// Farthest [`backed_off`] moves an approach back, mm: well within a power grasp's approach to
-/// contact ([`GraspPlan::approach_mm`], 40 mm), which brings the palm back onto the part.
+/// contact ([`GraspPlan::approach_mm`]), which brings the palm back onto the part.
 pub const BACK_OFF_MAX_MM: f64 = 24.0;
 
 /// A power approach whose preshape starts inside the part moved back along its palmar axis, in
