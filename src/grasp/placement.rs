@@ -374,14 +374,14 @@ fn by_quality(a: &Score, b: &Score) -> std::cmp::Ordering {
 }
 
 /// The placement search's two stages on candidate approaches `0..n` (`approach_of(i)`: the
-/// grasp frame in the part's world, `None` to skip): in index order until [`SCREEN_CLOSED`] have
-/// closed, each screened (parallel, until `time_limit_s`) by the coarse autograsp and scored on every [`SCREEN_STRIDE`]-th vertex
-/// with [`SCREEN_CONE_EDGES`]-edge cones, a start deep inside the part rejected by the voxel
-/// grid; then down that ranking, `finalists` at a time until `finalists` succeed, closed by
+/// grasp frame in the part's world, `None` to skip): in index order until [`SCREEN_CLOSED`]
+/// have closed, each screened (parallel, until `time_limit_s`) by the coarse autograsp
+/// ([`screening_options`]) and scored on every [`SCREEN_STRIDE`]-th vertex with
+/// [`SCREEN_CONE_EDGES`]-edge cones, a start deep inside the part rejected by the voxel grid; then down that ranking, `finalists` at a time until `finalists` succeed, closed by
 /// the default autograsp, squeezed and scored in full. `envelope_first`: the first ranking key
 /// is how far the grasp envelops the part ([`envelope_rank`]) instead of the plan's pads.
 /// Returns the finalists' scores, best first (ties to the lower index), and how many
-/// candidates were screened.
+/// candidates closed in the screening.
 #[allow(clippy::too_many_arguments)]
 fn screen_and_rank(
     hand: &dyn PosableHand,
@@ -396,13 +396,7 @@ fn screen_and_rank(
 ) -> (Vec<Score>, usize) {
     use rayon::prelude::*;
     let gf = grasp_frame(hand);
-    let coarse = AutograspOptions {
-        step: 0.1,
-        min_step: 0.05,
-        max_depth_mm: 2.0,
-        stride: SCREEN_STRIDE,
-        ..AutograspOptions::default()
-    };
+    let coarse = screening_options();
     // A bar only where status lines are logged (the command line without --quiet).
     let bar = if log::log_enabled!(log::Level::Info) && n > 50 {
         indicatif::ProgressBar::new(n as u64)
@@ -431,7 +425,11 @@ fn screen_and_rank(
     // `SCREEN_CLOSED` have closed: a sample that large ranks as well as every candidate would,
     // and where few candidates close (a large flat part) the search still tries them all.
     use std::sync::atomic::{AtomicUsize, Ordering::Relaxed};
-    let (no_place, deep) = (AtomicUsize::new(0), AtomicUsize::new(0));
+    let (no_place, deep, late) = (
+        AtomicUsize::new(0),
+        AtomicUsize::new(0),
+        AtomicUsize::new(0),
+    );
     let mut scored: Vec<Screened> = Vec::new();
     let mut tried = 0;
     while tried < n && scored.len() < SCREEN_CLOSED {
@@ -442,6 +440,7 @@ fn screen_and_rank(
                 .map_init(Vec::new, |buf, i| {
                     bar.inc(1);
                     if started.elapsed().as_secs_f64() > time_limit_s {
+                        late.fetch_add(1, Relaxed);
                         return None;
                     }
                     let Some(root) = root_of(i) else {
@@ -462,11 +461,11 @@ fn screen_and_rank(
     }
     bar.finish_and_clear();
     let evaluated = scored.len();
-    let (no_place, deep) = (no_place.into_inner(), deep.into_inner());
+    let (no_place, deep, late) = (no_place.into_inner(), deep.into_inner(), late.into_inner());
     log::debug!(
-        "placement search: screening {:.2} s: {tried} of {n} candidates tried, {evaluated} closed, {no_place} without a placement, {deep} starting inside the part, {} refused by the autograsp",
+        "placement search: screening {:.2} s: {tried} of {n} candidates tried, {evaluated} closed, {no_place} without a placement, {deep} starting inside the part, {} refused by the autograsp, {late} past the time limit",
         started.elapsed().as_secs_f64(),
-        tried - evaluated - no_place - deep,
+        tried - evaluated - no_place - deep - late,
     );
     let mut ranked = scored;
     sort_by_pads_and_epsilon(&mut ranked);
@@ -503,6 +502,18 @@ fn screen_and_rank(
         started.elapsed().as_secs_f64()
     );
     (finals, evaluated)
+}
+
+/// The screening's coarse autograsp: steps of 0.1 in the closing parameter, every
+/// [`SCREEN_STRIDE`]-th skin vertex, links up to 2 mm deep.
+fn screening_options() -> AutograspOptions {
+    AutograspOptions {
+        step: 0.1,
+        min_step: 0.05,
+        max_depth_mm: 2.0,
+        stride: SCREEN_STRIDE,
+        ..AutograspOptions::default()
+    }
 }
 
 /// Step of [`backed_off`]'s retreat, mm.
@@ -624,9 +635,11 @@ fn skin_sample(hand: &dyn PosableHand, stride: usize) -> (Vec<usize>, Vec<usize>
 /// (Cutkosky 1989), and epsilon of every contact preferred a tripod held by the thenar and one
 /// fingertip, which is force closure but drops the pen.
 ///
-/// Screening (parallel, stops early at `time_limit_s`): a placement where a skin vertex is deep
-/// inside the part at the preshape is rejected by the voxel grid (every vertex); the others are
-/// closed by a coarse autograsp (steps of 0.1, every [`SCREEN_STRIDE`]-th vertex) and scored
+/// A power placement whose open hand starts inside the part is first moved back along the
+/// palmar axis to a clear start ([`backed_off`]). Screening (parallel, in index order until
+/// [`SCREEN_CLOSED`] candidates have closed, stops early at `time_limit_s`): a placement where
+/// a skin vertex is deep inside the part at the preshape is rejected by the voxel grid (every
+/// vertex); the others are closed by a coarse autograsp (steps of 0.1, every [`SCREEN_STRIDE`]-th vertex) and scored
 /// with contacts on the same vertices and friction cones of [`SCREEN_CONE_EDGES`] edges (a lower
 /// bound of the full epsilon). The [`FINALISTS`] best are closed by the default autograsp,
 /// squeezed ([`squeeze`]) and scored by the full model (every vertex,
@@ -687,10 +700,8 @@ pub fn placement_search(
             .and_then(|axis| roll_along(&dir, &axis))
             .map_or(roll, |r| r + power[i].1)
     };
-    let screen_opts = AutograspOptions {
-        stride: SCREEN_STRIDE,
-        ..AutograspOptions::default()
-    };
+    // The back-off checks the start as the screening's autograsp will.
+    let screen_opts = screening_options();
     let pad = pad_point(hand, plan);
     let press = press_travel(hand, plan);
     let approach_of = |i: usize| match (&pad, &press) {
