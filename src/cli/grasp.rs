@@ -186,8 +186,15 @@ fn view_page(o: &GraspOutcome, glb: Vec<u8>) -> ViewPage {
 /// `grasp.glb` and `contact_map.png` into `out`.
 pub fn grasp(scene: &Path, model: Option<&Path>, out: &Path) -> Result<GraspReport> {
     let r = grasp_job(scene, model, out)?;
+    // A grasp the squeeze pushed out of the hand says where to, which is why it drops.
+    let pushed = match crate::grasp::population::squeezed_toward(&r.settle_by_direction_mm) {
+        Some(w) if !r.holds && r.hold_test.settle_mm >= crate::grasp::hold::HOLD_LIMIT_MM => {
+            format!(" (the squeeze pushed it {:.1} mm {w})", r.hold_test.settle_mm)
+        }
+        _ => String::new(),
+    };
     log::info!(
-        "grasp: force closure {}, epsilon {:.4}, volume {:.3e}, holds {}, contact {:.0} mm², {}; wrote {}",
+        "grasp: force closure {}, epsilon {:.4}, volume {:.3e}, holds {}{pushed}, contact {:.0} mm², {}; wrote {}",
         r.force_closure,
         r.epsilon,
         r.volume,

@@ -79,6 +79,10 @@ pub struct HoldReport {
     pub settle_mm: f64,
     /// Per direction.
     pub trials: Vec<HoldTrial>,
+    /// The part's rigid motion while the squeeze settled it, in the world, mm (its centre of
+    /// mass moved [`HoldReport::settle_mm`]).
+    #[serde(skip)]
+    pub settle_motion: nalgebra::Isometry3<f64>,
 }
 
 fn v(p: &Point) -> Vector {
@@ -286,6 +290,7 @@ fn run_trials(
             duration_s,
             settle_mm: 0.0,
             trials,
+            settle_motion: nalgebra::Isometry3::identity(),
         });
     };
     let mut world = PhysicsWorld::new();
@@ -344,6 +349,14 @@ fn run_trials(
         world.step();
     }
     let settle_mm = (world.bodies[body].position().transform_point(com) - com).length() * 1e3;
+    let settle_motion = {
+        let p = world.bodies[body].position();
+        let (t, q) = (p.translation * 1e3, p.rotation);
+        nalgebra::Isometry3::from_parts(
+            nalgebra::Translation3::new(t.x, t.y, t.z),
+            nalgebra::UnitQuaternion::new_normalize(nalgebra::Quaternion::new(q.w, q.x, q.y, q.z)),
+        )
+    };
     let rb = &mut world.bodies[body];
     rb.set_linear_damping(0.0);
     rb.set_angular_damping(0.0);
@@ -404,6 +417,7 @@ fn run_trials(
         duration_s,
         settle_mm,
         trials,
+        settle_motion,
     })
 }
 
@@ -533,8 +547,8 @@ mod tests {
     /// 98 contacts) can bear four times the edge's push (21): a solid slab stays where it is
     /// and holds. Friction acting only in rapier's unbiased pass let the edge's push slide it
     /// the whole 1.5 mm while settling.
-    #[test]
-    fn a_slab_pressed_at_its_edge_between_pressed_faces_stays_put() {
+    /// A 40 x 60 x 8 mm slab centred on the origin, thin along z.
+    fn slab() -> PartShape {
         let m = super::super::parts::mesh_sdf(
             |p| {
                 (p.x.abs() - 20.0)
@@ -546,7 +560,37 @@ mod tests {
             1.0,
         )
         .unwrap();
-        let part = PartShape::new(m).unwrap().0;
+        PartShape::new(m).unwrap().0
+    }
+
+    /// Balls of the skin's radius centred at `centres` (each one's surface its radius inside a
+    /// surface the centre lies on).
+    fn balls_at(centres: &[Point]) -> Vec<Collider> {
+        centres
+            .iter()
+            .map(|c| {
+                ColliderBuilder::ball(SKIN_BALL_MM * 1e-3)
+                    .translation(v(c))
+                    .friction(0.5)
+                    .build()
+            })
+            .collect()
+    }
+
+    /// 21 ball centres on the slab's +x edge.
+    fn edge_centres() -> Vec<Point> {
+        let mut centres = Vec::new();
+        for j in -3..=3 {
+            for z in [-2.0, 0.0, 2.0] {
+                centres.push(Point::new(20.0, j as f64 * 3.0, z));
+            }
+        }
+        centres
+    }
+
+    #[test]
+    fn a_slab_pressed_at_its_edge_between_pressed_faces_stays_put() {
+        let part = slab();
         // Ball centres on the surface: each ball's surface its radius (1.5 mm) inside.
         let mut centres = Vec::new();
         for i in -3..=3 {
@@ -556,24 +600,50 @@ mod tests {
                 centres.push(Point::new(x, y, -4.0));
             }
         }
-        for j in -3..=3 {
-            for z in [-2.0, 0.0, 2.0] {
-                centres.push(Point::new(20.0, j as f64 * 3.0, z));
-            }
-        }
-        let balls: Vec<Collider> = centres
-            .iter()
-            .map(|c| {
-                ColliderBuilder::ball(SKIN_BALL_MM * 1e-3)
-                    .translation(v(c))
-                    .friction(0.5)
-                    .build()
-            })
-            .collect();
-        let r = run_trials(balls, &centres, &part, 0.18, 0.5, HoldRun::Whole).unwrap();
+        centres.extend(edge_centres());
+        let r = run_trials(
+            balls_at(&centres),
+            &centres,
+            &part,
+            0.18,
+            0.5,
+            HoldRun::Whole,
+        )
+        .unwrap();
         assert!(r.settle_mm < 0.3, "{r:?}");
         assert!(r.holds, "{r:?}");
         assert!(r.trials.iter().all(|t| t.displacement_mm < 0.1), "{r:?}");
+    }
+
+    /// Pressed at its edge alone, the slab is pushed straight off the balls while it settles:
+    /// the settle motion is a translation along the edge's inward normal (-x) by about the
+    /// balls' overlap (1.5 mm), and the report's settle distance is its length.
+    #[test]
+    fn a_slab_pressed_at_its_edge_alone_settles_away_from_the_push() {
+        let part = slab();
+        let centres = edge_centres();
+        let r = run_trials(
+            balls_at(&centres),
+            &centres,
+            &part,
+            0.18,
+            0.5,
+            HoldRun::Whole,
+        )
+        .unwrap();
+        let c = part.centre_of_mass;
+        let moved = r.settle_motion * c - c;
+        assert!(
+            moved.x < 0.0 && moved.x.abs() > 0.95 * moved.norm(),
+            "{moved:?}"
+        );
+        assert!((1.0..2.5).contains(&moved.norm()), "{moved:?}");
+        assert!((moved.norm() - r.settle_mm).abs() < 1e-9, "{moved:?} {r:?}");
+        assert!(
+            r.settle_motion.rotation.angle() < 1f64.to_radians(),
+            "{r:?}"
+        );
+        assert!(!r.holds, "{r:?}");
     }
 
     fn cylinder() -> PartShape {

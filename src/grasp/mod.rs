@@ -135,6 +135,13 @@ pub struct GraspReport {
     pub envelope: contact::Envelope,
     /// Deepest skin penetration, mm.
     pub max_penetration_mm: f64,
+    /// How the part's centre of mass moved while the squeeze settled it in the hold test
+    /// (`hold_test.settle_mm` is its length), along the posed hand's directions
+    /// ([`crate::skeleton::Skeleton::hand_directions`]), mm: `dorsal` (into the palm when
+    /// positive, away from it when negative), `radial` (toward the thumb's side) and `distal`
+    /// (toward the fingertips). It shows where a squeeze whose forces do not balance pushes the
+    /// part: out of a grip that does not oppose it there.
+    pub settle_by_direction_mm: BTreeMap<String, f64>,
     /// Wrist travel from the approach until the palm touched (power grasps), mm
     /// ([`autograsp::approach_to_contact`]).
     pub approach_to_contact_mm: f64,
@@ -546,6 +553,16 @@ pub fn run_scene_on(
             )
         })
         .collect();
+    let palm = crate::skeleton::forward_kinematics::link_transforms(hand.skeleton(), &pose)
+        [crate::anatomy::Link::Palm.index()];
+    let (origin, axes) = hand.skeleton().hand_directions();
+    let c = part.centre_of_mass;
+    let settled = ht.settle_motion * c - c;
+    let settle_by_direction_mm = ["dorsal", "radial", "distal"]
+        .into_iter()
+        .zip(axes)
+        .map(|(name, a)| (name.to_string(), settled.dot(&(palm * a))))
+        .collect();
     let report = GraspReport {
         scene: scene.path.display().to_string(),
         grasp_type: scene.grasp.name().to_string(),
@@ -562,6 +579,7 @@ pub fn run_scene_on(
         total_contact_area_mm2: cs.total_area_mm2(),
         envelope: cs.envelope(),
         max_penetration_mm: cs.max_depth_mm(),
+        settle_by_direction_mm,
         approach_to_contact_mm: g.approach_mm,
         squeeze: squeezed,
         placement_tries,
@@ -584,9 +602,6 @@ pub fn run_scene_on(
             ..timings
         },
     };
-    let palm = crate::skeleton::forward_kinematics::link_transforms(hand.skeleton(), &pose)
-        [crate::anatomy::Link::Palm.index()];
-    let (origin, axes) = hand.skeleton().hand_directions();
     Ok(GraspOutcome {
         report,
         hand_mesh,

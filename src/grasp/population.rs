@@ -27,6 +27,11 @@ pub enum Failure {
     NotForceClosure,
     /// Force closure, but the part moves more than 2 mm in the rapier hold test.
     Slips,
+    /// Force closure, but the squeeze alone pushed the part at least as far as the hold test's
+    /// limit (2 mm) while it settled, before any gravity, and it then dropped: the grip's forces
+    /// do not balance, and nothing opposes the part where it is pushed
+    /// ([`HandOutcome::squeezed_toward`]).
+    SqueezedOut,
 }
 
 impl Failure {
@@ -36,6 +41,7 @@ impl Failure {
             Failure::NoGrasp => "no grasp found",
             Failure::NotForceClosure => "not force closure",
             Failure::Slips => "slips in the hold test",
+            Failure::SqueezedOut => "pushed out by the squeeze",
         }
     }
 }
@@ -75,6 +81,10 @@ pub struct HandOutcome {
     pub approach_slide_mm: Option<f64>,
     /// Why it does not hold (`None`: it holds).
     pub failure: Option<Failure>,
+    /// Where the squeeze pushed the part out of the grip ([`Failure::SqueezedOut`]): the
+    /// hand direction it moved furthest along ([`squeezed_toward`]).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub squeezed_toward: Option<String>,
     /// The scene's error when no grasp was found.
     pub error: Option<String>,
     /// Time of the scene, s (wall time; `grasp --models` runs hands side by side, so this is
@@ -137,6 +147,7 @@ pub fn hand_outcome(
         at_limit: Vec::new(),
         approach_slide_mm: None,
         failure: Some(Failure::NoGrasp),
+        squeezed_toward: None,
         error: None,
         time_s: 0.0,
     };
@@ -161,6 +172,9 @@ pub fn hand_outcome(
                 None
             } else if !r.force_closure {
                 Some(Failure::NotForceClosure)
+            } else if r.hold_test.settle_mm >= super::hold::HOLD_LIMIT_MM {
+                o.squeezed_toward = squeezed_toward(&r.settle_by_direction_mm).map(str::to_string);
+                Some(Failure::SqueezedOut)
             } else {
                 Some(Failure::Slips)
             };
@@ -168,6 +182,38 @@ pub fn hand_outcome(
         }
     }
     o
+}
+
+/// The hand direction along which the part moved furthest while the squeeze settled it
+/// (`settle` as [`GraspReport::settle_by_direction_mm`]), in words: "into the palm", "out of
+/// the palm", "toward the thumb's side", "toward the little finger's side", "toward the
+/// fingertips" or "toward the wrist". `None` when no direction is given.
+pub fn squeezed_toward(settle: &BTreeMap<String, f64>) -> Option<&'static str> {
+    let (name, d) = settle
+        .iter()
+        .filter(|(_, d)| d.is_finite())
+        .max_by(|a, b| a.1.abs().total_cmp(&b.1.abs()))?;
+    Some(match (name.as_str(), *d >= 0.0) {
+        ("dorsal", true) => "into the palm",
+        ("dorsal", false) => "out of the palm",
+        ("radial", true) => "toward the thumb's side",
+        ("radial", false) => "toward the little finger's side",
+        ("distal", true) => "toward the fingertips",
+        ("distal", false) => "toward the wrist",
+        _ => return None,
+    })
+}
+
+impl HandOutcome {
+    /// Why it does not hold, in words, with where the squeeze pushed the part for
+    /// [`Failure::SqueezedOut`] (`None`: it holds).
+    pub fn failure_reason(&self) -> Option<String> {
+        let f = self.failure?;
+        Some(match &self.squeezed_toward {
+            Some(w) if f == Failure::SqueezedOut => format!("{} {w}", f.describe()),
+            _ => f.describe().to_string(),
+        })
+    }
 }
 
 /// The hands of one size third.
@@ -244,8 +290,8 @@ pub fn summarise(scene: &str, grasp_type: &str, outcomes: Vec<HandOutcome>) -> P
         })
         .collect();
     let mut failures = BTreeMap::new();
-    for f in outcomes.iter().filter_map(|o| o.failure) {
-        *failures.entry(f.describe().to_string()).or_insert(0) += 1;
+    for why in outcomes.iter().filter_map(HandOutcome::failure_reason) {
+        *failures.entry(why).or_insert(0) += 1;
     }
     PopulationSummary {
         scene: scene.to_string(),
@@ -311,6 +357,7 @@ mod tests {
             at_limit: Vec::new(),
             approach_slide_mm: None,
             failure,
+            squeezed_toward: None,
             error: None,
             time_s: 1.0,
         }
@@ -355,6 +402,49 @@ mod tests {
         assert_eq!(s.failures["not force closure"], 1);
         // The outcomes keep the order given.
         assert_eq!(s.outcomes[0].name, "g");
+    }
+
+    /// The squeeze's direction is the hand direction of the largest displacement, by its
+    /// sign; a hand pushed out is counted with it, apart from one that slips.
+    #[test]
+    fn a_part_pushed_out_is_counted_with_where_it_went() {
+        let settle = |d: f64, r: f64, p: f64| -> BTreeMap<String, f64> {
+            [("dorsal", d), ("radial", r), ("distal", p)]
+                .into_iter()
+                .map(|(k, v)| (k.to_string(), v))
+                .collect()
+        };
+        assert_eq!(
+            squeezed_toward(&settle(-2.0, 1.0, -1.9)),
+            Some("out of the palm")
+        );
+        assert_eq!(
+            squeezed_toward(&settle(0.5, -3.0, 1.0)),
+            Some("toward the little finger's side")
+        );
+        assert_eq!(
+            squeezed_toward(&settle(0.5, 1.0, -1.5)),
+            Some("toward the wrist")
+        );
+        assert_eq!(
+            squeezed_toward(&settle(2.5, 1.0, -1.5)),
+            Some("into the palm")
+        );
+        assert_eq!(squeezed_toward(&BTreeMap::new()), None);
+        let mut out = outcome("a", 170.0, Some(Failure::SqueezedOut));
+        out.squeezed_toward = squeezed_toward(&settle(0.5, 1.0, -1.5)).map(str::to_string);
+        let s = summarise(
+            "drill.toml",
+            "power",
+            vec![
+                out,
+                outcome("b", 180.0, Some(Failure::Slips)),
+                outcome("c", 190.0, None),
+            ],
+        );
+        assert_eq!(s.failures["pushed out by the squeeze toward the wrist"], 1);
+        assert_eq!(s.failures["slips in the hold test"], 1);
+        assert_eq!(s.failures.len(), 2);
     }
 
     /// A joint at its limit is named with the DOF and the limit; a DOF the joint does not have

@@ -123,7 +123,7 @@ pub fn hand_table(s: &PopulationSummary) -> Table {
         row.push(Cell::new(o.at_limit.join(", ")));
         let why = match (&o.failure, &o.error) {
             (_, Some(e)) => e.clone(),
-            (Some(f), None) => f.describe().to_string(),
+            (Some(_), None) => o.failure_reason().unwrap_or_default(),
             (None, None) => String::new(),
         };
         row.push(Cell::flagged(why, o.failure.is_some()));
@@ -304,6 +304,7 @@ mod tests {
             at_limit: vec!["T_IP flexion at -20°".into()],
             approach_slide_mm: None,
             failure: (!holds).then_some(Failure::Slips),
+            squeezed_toward: None,
             error: None,
             time_s: 1.0,
         }
