@@ -189,7 +189,10 @@ pub fn grasp(scene: &Path, model: Option<&Path>, out: &Path) -> Result<GraspRepo
     // A grasp the squeeze pushed out of the hand says where to, which is why it drops.
     let pushed = match crate::grasp::population::squeezed_toward(&r.settle_by_direction_mm) {
         Some(w) if !r.holds && r.hold_test.settle_mm >= crate::grasp::hold::HOLD_LIMIT_MM => {
-            format!(" (the squeeze pushed it {:.1} mm {w})", r.hold_test.settle_mm)
+            format!(
+                " (the squeeze pushed it {:.1} mm {w})",
+                r.hold_test.settle_mm
+            )
         }
         _ => String::new(),
     };

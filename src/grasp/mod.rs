@@ -148,9 +148,10 @@ pub struct GraspReport {
     /// The squeeze after contact ([`autograsp::squeeze`]): the posture measured and tested is
     /// the squeezed one.
     pub squeeze: autograsp::Squeeze,
-    /// Placements of the search closed and hold-tested: its best, then its runners-up while the
-    /// hold test failed; likewise the positions of a given approach that slides
-    /// (`grasp.slide_mm`); 0 for a given approach that does not.
+    /// Placements of the search closed and hold-tested: its best, then its runners-up and its
+    /// reserves ([`placement::PlacementResult::reserves`]) while the hold test failed; likewise
+    /// the positions of a given approach that slides (`grasp.slide_mm`); 0 for a given approach
+    /// that does not.
     pub placement_tries: usize,
     /// How far the hand slid along its palm from the given approach, mm (toward the fingers
     /// when positive; only with `grasp.slide_mm`).
@@ -433,6 +434,7 @@ pub fn run_scene_on(
             })?;
             std::iter::once(r.approach)
                 .chain(r.runners_up)
+                .chain(r.reserves)
                 .map(|a| (None, a))
                 .collect()
         }
@@ -895,5 +897,22 @@ mod tests {
         let r = &shipped("pen");
         let pads = ["T_DIST", "I_DIST", "M_DIST"];
         assert_held_by_pads(r, &pads, &pads[..2], &["PALM", "T_META", "T_PROX"]);
+    }
+
+    /// A frictionless pen, which no tripod holds (nothing resists it along its length): the
+    /// scene tries the search's best, its runners-up and then its reserves before it reports
+    /// the best that dropped.
+    #[test]
+    fn a_part_no_finalist_holds_is_tried_with_the_reserves() {
+        let mut scene = shipped_scene("pen");
+        scene.friction = 0.0;
+        let r = run_scene(&scene, hand()).unwrap().report;
+        assert!(!r.holds, "{:?}", r.hold_test);
+        assert!(
+            (placement::FINALISTS + 1..=placement::FINALISTS + placement::RESERVES)
+                .contains(&r.placement_tries),
+            "{}",
+            r.placement_tries
+        );
     }
 }

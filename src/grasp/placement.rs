@@ -209,6 +209,9 @@ pub struct PlacementResult {
     /// The other finalists' approaches, best first (for a caller that rejects the best, e.g.
     /// by the hold test).
     pub runners_up: Vec<Isometry3<f64>>,
+    /// The candidates ranked next by the screening alone (not evaluated in full), best first:
+    /// for a caller whose finalists all fail ([`RESERVES`]).
+    pub reserves: Vec<Isometry3<f64>>,
 }
 
 /// Skin vertex stride of the placement search's screening (closing checks and contacts).
@@ -221,6 +224,10 @@ pub(crate) const SCREEN_CONE_EDGES: usize = 4;
 /// Screened candidates whose full evaluation decides (taken down the screening ranking,
 /// skipping those the full autograsp refuses).
 pub(crate) const FINALISTS: usize = 6;
+
+/// Candidates of the screening's ranking after the finalists kept in reserve
+/// ([`PlacementResult::reserves`]).
+pub const RESERVES: usize = 10;
 
 /// The screening stops once this many candidates have closed on the part.
 pub(crate) const SCREEN_CLOSED: usize = 128;
@@ -380,8 +387,9 @@ fn by_quality(a: &Score, b: &Score) -> std::cmp::Ordering {
 /// [`SCREEN_CONE_EDGES`]-edge cones, a start deep inside the part rejected by the voxel grid; then down that ranking, `finalists` at a time until `finalists` succeed, closed by
 /// the default autograsp, squeezed and scored in full. `envelope_first`: the first ranking key
 /// is how far the grasp envelops the part ([`envelope_rank`]) instead of the plan's pads.
-/// Returns the finalists' scores, best first (ties to the lower index), and how many
-/// candidates closed in the screening.
+/// Returns the finalists' scores, best first (ties to the lower index), how many candidates
+/// closed in the screening, and the next [`RESERVES`] candidates of the screening's ranking
+/// by pads and epsilon (indices, not evaluated in full).
 #[allow(clippy::too_many_arguments)]
 fn screen_and_rank(
     hand: &dyn PosableHand,
@@ -393,7 +401,7 @@ fn screen_and_rank(
     finalists: usize,
     time_limit_s: f64,
     envelope_first: bool,
-) -> (Vec<Score>, usize) {
+) -> (Vec<Score>, usize, Vec<usize>) {
     use rayon::prelude::*;
     let gf = grasp_frame(hand);
     let coarse = screening_options();
@@ -501,7 +509,14 @@ fn screen_and_rank(
         "placement search: finalists {:.2} s",
         started.elapsed().as_secs_f64()
     );
-    (finals, evaluated)
+    // In the order of pads and epsilon, ties (already settled or not) by index: a reserve's
+    // volume is not worth its hull.
+    let reserves = ranked[pos..]
+        .iter()
+        .take(RESERVES)
+        .map(|s| s.score.0)
+        .collect();
+    (finals, evaluated, reserves)
 }
 
 /// The screening's coarse autograsp: steps of 0.1 in the closing parameter, every
@@ -589,7 +604,7 @@ pub fn slide_search(
         .map(|k| k as f64 * SLIDE_STEP_MM)
         .collect();
     let at = |o: f64| approach * Translation3::new(0.0, o, 0.0);
-    let (finals, _) = screen_and_rank(
+    let (finals, _, _) = screen_and_rank(
         hand,
         part,
         plan,
@@ -711,7 +726,7 @@ pub fn placement_search(
             .map(|a| backed_off(hand, part, plan, a, &screen_opts)),
         (None, _) => placement(part, &cand[i].0, cand[i].1, 3.0),
     };
-    let (finals, evaluated) = screen_and_rank(
+    let (finals, evaluated, reserves) = screen_and_rank(
         hand,
         part,
         plan,
@@ -736,6 +751,7 @@ pub fn placement_search(
             .iter()
             .filter_map(|s| approach_of(s.0))
             .collect(),
+        reserves: reserves.into_iter().filter_map(approach_of).collect(),
     })
 }
 
@@ -882,6 +898,13 @@ mod tests {
         let e = c.envelope();
         assert!(e.wraps, "{e:?}");
         assert_eq!(r.pads_touching, envelope_rank(&e));
+        // Reserves: a full set, none of them a finalist.
+        assert_eq!(r.reserves.len(), RESERVES);
+        let finalists: Vec<&Isometry3<f64>> =
+            std::iter::once(&r.approach).chain(&r.runners_up).collect();
+        for a in &r.reserves {
+            assert!(finalists.iter().all(|f| *f != a), "{a:?}");
+        }
     }
 
     /// The lazy ranking against the eager one it replaces: every candidate's volume from its
