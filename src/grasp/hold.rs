@@ -577,6 +577,11 @@ mod tests {
             .collect()
     }
 
+    /// The whole hold test of a 180 g `part` (mu 0.5) against balls at `centres`.
+    fn slab_trials(part: &PartShape, centres: &[Point]) -> HoldReport {
+        run_trials(balls_at(centres), centres, part, 0.18, 0.5, HoldRun::Whole).unwrap()
+    }
+
     /// 21 ball centres on the slab's +x edge.
     fn edge_centres() -> Vec<Point> {
         let mut centres = Vec::new();
@@ -601,15 +606,7 @@ mod tests {
             }
         }
         centres.extend(edge_centres());
-        let r = run_trials(
-            balls_at(&centres),
-            &centres,
-            &part,
-            0.18,
-            0.5,
-            HoldRun::Whole,
-        )
-        .unwrap();
+        let r = slab_trials(&part, &centres);
         assert!(r.settle_mm < 0.3, "{r:?}");
         assert!(r.holds, "{r:?}");
         assert!(r.trials.iter().all(|t| t.displacement_mm < 0.1), "{r:?}");
@@ -622,15 +619,7 @@ mod tests {
     fn a_slab_pressed_at_its_edge_alone_settles_away_from_the_push() {
         let part = slab();
         let centres = edge_centres();
-        let r = run_trials(
-            balls_at(&centres),
-            &centres,
-            &part,
-            0.18,
-            0.5,
-            HoldRun::Whole,
-        )
-        .unwrap();
+        let r = slab_trials(&part, &centres);
         let c = part.centre_of_mass;
         let moved = r.settle_motion * c - c;
         assert!(
