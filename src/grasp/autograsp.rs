@@ -30,6 +30,17 @@ use nalgebra::{Isometry3, Translation3};
 /// Rempel 1997, fingertip force-displacement: about 1 N at 1 mm, several N at 2 mm).
 pub const SQUEEZE_MM: f64 = 1.5;
 
+/// How deep a wrapping digit's [`squeeze`] may press the phalanges a closing joint carries
+/// (distal to its own), mm. The wrap leaves the distal phalanx touching last, so with every link
+/// held to [`SQUEEZE_MM`] the fingertip reached it first and stopped the MCP and PIP: the
+/// squeeze pressed the fingertips 1.5 mm and the middle and proximal phalanges 0-0.9 mm; the
+/// fingertips' push, curled back over the handle, slid it along the palm toward the wrist and
+/// out of the grip. Letting the
+/// carried pad sink to 2 mm (its pulp is the thickest, and firm grips compress it by 1 to 2 mm,
+/// Serina et al. 1997) lets the proximal and middle phalanges be pressed too. The hold test
+/// counts no ball deeper than the squeeze ([`super::hold`]), so the fingertip pushes no harder.
+pub const WRAP_CARRIED_SQUEEZE_MM: f64 = 2.0;
+
 /// Settings of [`autograsp`].
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct AutograspOptions {
@@ -48,6 +59,9 @@ pub struct AutograspOptions {
     pub finger_allowance_mm: f64,
     /// Skin compression of the [`squeeze`] after contact, mm.
     pub squeeze_mm: f64,
+    /// How deep a wrapping digit's [`squeeze`] may press the phalanges a closing joint
+    /// carries, mm ([`WRAP_CARRIED_SQUEEZE_MM`]).
+    pub wrap_carried_mm: f64,
 }
 
 impl Default for AutograspOptions {
@@ -60,6 +74,7 @@ impl Default for AutograspOptions {
             stride: 1,
             finger_allowance_mm: 1.0,
             squeeze_mm: SQUEEZE_MM,
+            wrap_carried_mm: WRAP_CARRIED_SQUEEZE_MM,
         }
     }
 }
@@ -466,7 +481,9 @@ pub struct Squeeze {
 /// Per digit, in rounds, each active joint with a touching link at or distal to it advances by
 /// `step` in `t` (halved down to `min_step`, then it stops) as long as no link of the digit
 /// goes deeper than `squeeze_mm` (or than it already was), no phalanx enters another finger's
-/// core ([`Cores`]) beyond the autograsp's allowance, and `t ≤ 1`. Deterministic.
+/// core ([`Cores`]) beyond the autograsp's allowance, and `t ≤ 1`. In a wrapping plan
+/// ([`GraspPlan::wrap`]) the links a joint carries, distal to its own, may go as deep as
+/// [`AutograspOptions::wrap_carried_mm`]. Deterministic.
 pub fn squeeze(
     hand: &dyn PosableHand,
     part: &PartShape,
@@ -526,7 +543,14 @@ pub fn squeeze(
                 let mut refused = false;
                 for m in k..3 {
                     next[m] = link_state(hand, part, dl[m].index(), &tr, opts, &mut buf);
-                    let deepest = opts.squeeze_mm.max(start[m].depth);
+                    // A wrapping joint presses its own phalanx; those it carries may sink a
+                    // little deeper (see WRAP_CARRIED_SQUEEZE_MM).
+                    let target = if plan.wrap && m > k {
+                        opts.squeeze_mm.max(opts.wrap_carried_mm)
+                    } else {
+                        opts.squeeze_mm
+                    };
+                    let deepest = target.max(start[m].depth);
                     if next[m].depth > deepest {
                         refused = true;
                     }
@@ -972,6 +996,35 @@ mod tests {
         .unwrap_err()
         .to_string();
         assert!(e.contains("starts inside the part"), "{e}");
+    }
+
+    /// The template's power grasp of the bottle from the side: with the carried phalanges
+    /// allowed to sink to 2 mm, the squeeze presses the fingers' middle phalanges deeper than
+    /// with every link held to the squeeze's 1.5 mm, and no finger link goes deeper than 2 mm.
+    #[test]
+    fn a_wrapping_squeeze_presses_the_middle_phalanges_too() {
+        let h = hand();
+        let plan = grasp_plan(GraspType::Power);
+        let root = root_for(h, &Isometry3::identity(), &side_approach());
+        let held = AutograspOptions {
+            wrap_carried_mm: SQUEEZE_MM,
+            ..AutograspOptions::default()
+        };
+        let carried = AutograspOptions::default();
+        let g = autograsp(h, bottle(), &plan, root, &carried).unwrap();
+        let depth = |opts: &AutograspOptions| squeeze(h, bottle(), &plan, &g, opts).2.depth_mm;
+        let (before, after) = (depth(&held), depth(&carried));
+        let mids = ["I_MID", "M_MID", "R_MID", "L_MID"];
+        let sum = |d: &std::collections::BTreeMap<String, f64>| -> f64 {
+            mids.iter().map(|l| d.get(*l).copied().unwrap_or(0.0)).sum()
+        };
+        assert!(sum(&after) > sum(&before) + 0.5, "{before:?}\n{after:?}");
+        for f in [Finger::Index, Finger::Middle, Finger::Ring, Finger::Little] {
+            for l in digit_links(f) {
+                let d = after.get(l.name()).copied().unwrap_or(0.0);
+                assert!(d <= WRAP_CARRIED_SQUEEZE_MM + 1e-9, "{}: {d}", l.name());
+            }
+        }
     }
 
     #[test]
