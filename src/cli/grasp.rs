@@ -187,15 +187,14 @@ fn view_page(o: &GraspOutcome, glb: Vec<u8>) -> ViewPage {
 pub fn grasp(scene: &Path, model: Option<&Path>, out: &Path) -> Result<GraspReport> {
     let r = grasp_job(scene, model, out)?;
     // A grasp the squeeze pushed out of the hand says where to, which is why it drops.
-    let pushed = match crate::grasp::population::squeezed_toward(&r.settle_by_direction_mm) {
-        Some(w) if !r.holds && r.hold_test.settle_mm >= crate::grasp::hold::HOLD_LIMIT_MM => {
+    let pushed = crate::grasp::population::pushed_out_toward(&r)
+        .map(|w| {
             format!(
                 " (the squeeze pushed it {:.1} mm {w})",
                 r.hold_test.settle_mm
             )
-        }
-        _ => String::new(),
-    };
+        })
+        .unwrap_or_default();
     log::info!(
         "grasp: force closure {}, epsilon {:.4}, volume {:.3e}, holds {}{pushed}, contact {:.0} mm², {}; wrote {}",
         r.force_closure,

@@ -348,7 +348,6 @@ fn run_trials(
     for _ in 0..SETTLE_STEPS {
         world.step();
     }
-    let settle_mm = (world.bodies[body].position().transform_point(com) - com).length() * 1e3;
     let settle_motion = {
         let p = world.bodies[body].position();
         let (t, q) = (p.translation * 1e3, p.rotation);
@@ -357,6 +356,7 @@ fn run_trials(
             nalgebra::UnitQuaternion::new_normalize(nalgebra::Quaternion::new(q.w, q.x, q.y, q.z)),
         )
     };
+    let settle_mm = (settle_motion * part.centre_of_mass - part.centre_of_mass).norm();
     let rb = &mut world.bodies[body];
     rb.set_linear_damping(0.0);
     rb.set_angular_damping(0.0);

@@ -384,8 +384,9 @@ fn by_quality(a: &Score, b: &Score) -> std::cmp::Ordering {
 /// grasp frame in the part's world, `None` to skip): in index order until [`SCREEN_CLOSED`]
 /// have closed, each screened (parallel, until `time_limit_s`) by the coarse autograsp
 /// ([`screening_options`]) and scored on every [`SCREEN_STRIDE`]-th vertex with
-/// [`SCREEN_CONE_EDGES`]-edge cones, a start deep inside the part rejected by the voxel grid; then down that ranking, `finalists` at a time until `finalists` succeed, closed by
-/// the default autograsp, squeezed and scored in full. `envelope_first`: the first ranking key
+/// [`SCREEN_CONE_EDGES`]-edge cones, a start deep inside the part rejected by the voxel grid;
+/// then down that ranking, `finalists` at a time until `finalists` succeed, closed by the
+/// default autograsp, squeezed and scored in full. `envelope_first`: the first ranking key
 /// is how far the grasp envelops the part ([`envelope_rank`]) instead of the plan's pads.
 /// Returns the finalists' scores, best first (ties to the lower index), how many candidates
 /// closed in the screening, and the next [`RESERVES`] candidates of the screening's ranking
@@ -654,8 +655,8 @@ fn skin_sample(hand: &dyn PosableHand, stride: usize) -> (Vec<usize>, Vec<usize>
 /// palmar axis to a clear start ([`backed_off`]). Screening (parallel, in index order until
 /// [`SCREEN_CLOSED`] candidates have closed, stops early at `time_limit_s`): a placement where
 /// a skin vertex is deep inside the part at the preshape is rejected by the voxel grid (every
-/// vertex); the others are closed by a coarse autograsp (steps of 0.1, every [`SCREEN_STRIDE`]-th vertex) and scored
-/// with contacts on the same vertices and friction cones of [`SCREEN_CONE_EDGES`] edges (a lower
+/// vertex); the others are closed by a coarse autograsp (steps of 0.1, every
+/// [`SCREEN_STRIDE`]-th vertex) and scored with contacts on the same vertices and friction cones of [`SCREEN_CONE_EDGES`] edges (a lower
 /// bound of the full epsilon). The [`FINALISTS`] best are closed by the default autograsp,
 /// squeezed ([`squeeze`]) and scored by the full model (every vertex,
 /// [`super::quality::CONE_EDGES`] edges), as the scene evaluation will; a candidate whose full
@@ -788,9 +789,6 @@ mod tests {
         }
     }
 
-    /// The axis a power grasp wraps round, against shapes whose answer is known: along the
-    /// bottle's axis on its side (and square to the view, so the MCP row lies along it from
-    /// any side), none on the bottle's flat base or on a sphere (curved both ways).
     /// The phone laid on the template's palm from random sides: where the open hand starts
     /// inside it, the power approach moves back along the palmar axis, by whole steps within
     /// the limit, to where it starts clear (and not a step sooner); an approach that starts
@@ -843,6 +841,9 @@ mod tests {
         assert!(moved >= 5 && kept >= 1, "moved {moved}, kept {kept}");
     }
 
+    /// The axis a power grasp wraps round, against shapes whose answer is known: along the
+    /// bottle's axis on its side (and square to the view, so the MCP row lies along it from
+    /// any side), none on the bottle's flat base or on a sphere (curved both ways).
     #[test]
     fn wrap_axis_is_a_cylinders_axis_and_nothing_elsewhere() {
         use crate::grasp::parts::Part;

@@ -172,8 +172,8 @@ pub fn hand_outcome(
                 None
             } else if !r.force_closure {
                 Some(Failure::NotForceClosure)
-            } else if r.hold_test.settle_mm >= super::hold::HOLD_LIMIT_MM {
-                o.squeezed_toward = squeezed_toward(&r.settle_by_direction_mm).map(str::to_string);
+            } else if let Some(w) = pushed_out_toward(r) {
+                o.squeezed_toward = Some(w.to_string());
                 Some(Failure::SqueezedOut)
             } else {
                 Some(Failure::Slips)
@@ -202,6 +202,16 @@ pub fn squeezed_toward(settle: &BTreeMap<String, f64>) -> Option<&'static str> {
         ("distal", false) => "toward the wrist",
         _ => return None,
     })
+}
+
+/// Where the squeeze pushed the part out of the grip of `r` ([`squeezed_toward`]), when it
+/// does not hold and the squeeze alone moved it the hold test's limit or more while it
+/// settled; `None` otherwise.
+pub fn pushed_out_toward(r: &GraspReport) -> Option<&'static str> {
+    if r.holds || r.hold_test.settle_mm < super::hold::HOLD_LIMIT_MM {
+        return None;
+    }
+    squeezed_toward(&r.settle_by_direction_mm)
 }
 
 impl HandOutcome {
