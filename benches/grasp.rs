@@ -1,7 +1,8 @@
 //! Grasp stage (the speed goals): one evaluation (pose by linear blend skinning +
 //! contacts + force closure and epsilon) of the 37k-face template hand against a
 //! ~100k-triangle bottle (< 5 ms), its contact query and its epsilon alone (the nearest-facet
-//! search) against the whole hull's epsilon and volume, one autograsp (< 100 ms), the hold test
+//! search) against the whole hull's epsilon and volume, the distance from force closure
+//! (Wolfe's nearest point) on the same wrenches, one autograsp (< 100 ms), the hold test
 //! and the part's simplification for it, a precision
 //! plan fitted to the hand (once per scene), and a placement search of 1,000 candidates
 //! (< 15 s).
@@ -15,7 +16,9 @@ use ergohand::grasp::hold::{hold_test_hand, HoldRun};
 use ergohand::grasp::parts::{mesh_sdf, Part};
 use ergohand::grasp::placement::placement_search;
 use ergohand::grasp::plan::{fit_thumb_to_pads, grasp_plan};
-use ergohand::grasp::quality::{grasp_epsilon, grasp_quality};
+use ergohand::grasp::quality::{
+    closure_distance, cone_wrenches, grasp_epsilon, grasp_quality, CONE_EDGES,
+};
 use ergohand::grasp::scene::{pose_from, GraspType};
 use ergohand::grasp::{evaluate, PosableHand, SkinnedHand};
 use nalgebra::Isometry3;
@@ -89,6 +92,18 @@ fn grasp_bench(c: &mut Criterion) {
                 part.max_radius,
             )
         })
+    });
+    // What ranks the placement search's grasps without force closure: the distance from the
+    // origin to the same hull (Wolfe's nearest point), without building it.
+    let wrenches = cone_wrenches(
+        &cs.contacts,
+        0.5,
+        &part.centre_of_mass,
+        part.max_radius,
+        CONE_EDGES,
+    );
+    gr.bench_function("closure_distance_nearest_point", |b| {
+        b.iter(|| closure_distance(black_box(&wrenches)))
     });
     gr.bench_function("autograsp_power_bottle", |b| {
         b.iter(|| autograsp(&hand, &part, &plan, black_box(root), &opts).unwrap())

@@ -9,6 +9,7 @@ pub mod horn;
 pub mod loop_subdivision;
 pub mod marching_tetrahedra;
 pub mod mesh;
+pub mod min_norm_point;
 pub mod plane_section;
 pub mod sparse_cholesky;
 pub mod tet_mesh;

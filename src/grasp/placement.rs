@@ -252,10 +252,10 @@ fn starts_deep_inside(
             .any(|p| part.grid.zone(p) == super::broad::Zone::Inside)
 }
 
-/// Quality of the hand closed by `opts` from `root`, its volume left to [`settle`] (see
-/// [`Screened`]), the contacts measured on every `stride`-th skin vertex (each standing for
-/// `stride` vertices' area) and the friction cones linearised with `edges` edges; epsilon and
-/// volume of the pads' contacts alone for a plan with [`GraspPlan::pads`]; with `squeezed`,
+/// Quality of the hand closed by `opts` from `root` ([`Score`]), the contacts measured on
+/// every `stride`-th skin vertex (each standing for `stride` vertices' area) and the friction
+/// cones linearised with `edges` edges; epsilon and the distance from force closure of the
+/// pads' contacts alone for a plan with [`GraspPlan::pads`]; with `squeezed`,
 /// measured after the [`squeeze`], as the scene is; with `envelope_first`, the first key is how
 /// far the grasp envelops the part ([`envelope_rank`]) instead of the pads touching. `None`
 /// when the autograsp refuses the start.
@@ -272,7 +272,7 @@ fn closed_quality(
     squeezed: bool,
     envelope_first: bool,
     index: usize,
-) -> Option<Screened> {
+) -> Option<Score> {
     let g = autograsp(hand, part, plan, root, opts).ok()?;
     let pose = if squeezed {
         squeeze(hand, part, plan, &g, opts).0
@@ -300,71 +300,29 @@ fn closed_quality(
     } else {
         plan.pads.iter().filter(|l| c.touches(l.index())).count()
     };
-    Some(Screened {
-        score: (index, pads, e.epsilon, 0.0, c.total_area_mm2()),
-        wrenches: (!e.force_closure).then_some(w),
-    })
+    // Grasps without force closure all have epsilon 0: how far each is from it orders them.
+    let closure = if e.force_closure {
+        0.0
+    } else {
+        -super::quality::closure_distance(&w)
+    };
+    Some((index, pads, e.epsilon, closure, c.total_area_mm2()))
 }
 
 /// A candidate's score: (its index, pads of the plan touching or, ranking by the envelope, its
-/// [`envelope_rank`], epsilon, volume, contact area).
+/// [`envelope_rank`], epsilon, minus its distance from force closure
+/// ([`super::quality::closure_distance`], 0 with force closure), contact area).
+///
+/// The third key orders the grasps without force closure, which all tie at epsilon 0. It was
+/// the volume of the wrench space's hull: tens of thousands of facets for a few hundred
+/// wrenches, most of a search's time where finalists tie (0.2-0.5 s a hull), and 0 where the
+/// hull's construction failed on a legitimate grasp. The distance says instead how much is
+/// missing for force closure, by Wolfe's nearest point in milliseconds, and never fails.
 type Score = (usize, usize, f64, f64, f64);
-
-/// A scored candidate whose volume quality may still be missing: a grasp without force
-/// closure keeps its wrenches until [`settle`] needs its volume (0 until then); one with force
-/// closure ranks by its epsilon and has volume 0, since two such grasps never tie on epsilon.
-/// The whole hull behind a volume (tens of thousands of facets, against a few hundred for the
-/// nearest-facet epsilon) was most of a screening's cost, and only candidates that tie on pads
-/// and epsilon (those without force closure do, at 0) near the top of the ranking are ordered
-/// by it.
-struct Screened {
-    score: Score,
-    wrenches: Option<Vec<super::quality::Wrench>>,
-}
 
 /// The order [`screen_and_rank`] keeps: best first by [`by_quality`], ties to the lower index.
 fn better_first(a: &Score, b: &Score) -> std::cmp::Ordering {
     by_quality(b, a).then(a.0.cmp(&b.0))
-}
-
-/// `ranked` sorted by pads and epsilon (best first, ties to the lower index) and in its final
-/// order before `from` (a boundary between ties): put it in its final order up to at least
-/// `upto`, computing the volumes of the candidates that tie there (in parallel), and return
-/// where that order now ends (the end of the last tie it reached).
-fn settle(ranked: &mut [Screened], from: usize, upto: usize) -> usize {
-    use rayon::prelude::*;
-    let mut g = from;
-    while g < upto.min(ranked.len()) {
-        let first = ranked[g].score;
-        let e = g + ranked[g..]
-            .iter()
-            .take_while(|s| by_pads_and_epsilon(&s.score, &first).is_eq())
-            .count();
-        if e - g > 1 {
-            ranked[g..e].par_iter_mut().for_each(|s| {
-                if let Some(w) = s.wrenches.take() {
-                    s.score.3 = super::quality::quality(&w).volume;
-                }
-            });
-            ranked[g..e].sort_by(|a, b| better_first(&a.score, &b.score));
-        }
-        g = e;
-    }
-    g
-}
-
-/// `scored` in the order of [`by_quality`] (ties to the lower index), its volumes computed
-/// where the order needs them.
-fn rank_all(mut scored: Vec<Screened>) -> Vec<Score> {
-    sort_by_pads_and_epsilon(&mut scored);
-    let n = scored.len();
-    settle(&mut scored, 0, n);
-    scored.into_iter().map(|s| s.score).collect()
-}
-
-/// Sort by pads and epsilon, best first, ties to the lower index (volumes left to [`settle`]).
-fn sort_by_pads_and_epsilon(scored: &mut [Screened]) {
-    scored.sort_by(|a, b| by_pads_and_epsilon(&b.score, &a.score).then(a.score.0.cmp(&b.score.0)));
 }
 
 /// The first keys of [`by_quality`]: pads touching, then epsilon.
@@ -373,7 +331,7 @@ fn by_pads_and_epsilon(a: &Score, b: &Score) -> std::cmp::Ordering {
 }
 
 /// The order of [`closed_quality`]'s scores, the index aside: pads touching, then epsilon,
-/// then volume (which only grasps without force closure have), then contact area.
+/// then nearness to force closure (for grasps without it), then contact area.
 fn by_quality(a: &Score, b: &Score) -> std::cmp::Ordering {
     by_pads_and_epsilon(a, b)
         .then(a.3.total_cmp(&b.3))
@@ -390,7 +348,7 @@ fn by_quality(a: &Score, b: &Score) -> std::cmp::Ordering {
 /// is how far the grasp envelops the part ([`envelope_rank`]) instead of the plan's pads.
 /// Returns the finalists' scores, best first (ties to the lower index), how many candidates
 /// closed in the screening, and the next [`RESERVES`] candidates of the screening's ranking
-/// by pads and epsilon (indices, not evaluated in full).
+/// (indices, not evaluated in full).
 #[allow(clippy::too_many_arguments)]
 fn screen_and_rank(
     hand: &dyn PosableHand,
@@ -439,7 +397,7 @@ fn screen_and_rank(
         AtomicUsize::new(0),
         AtomicUsize::new(0),
     );
-    let mut scored: Vec<Screened> = Vec::new();
+    let mut scored: Vec<Score> = Vec::new();
     let mut tried = 0;
     while tried < n && scored.len() < SCREEN_CLOSED {
         let end = (tried + SCREEN_CHUNK).min(n);
@@ -477,21 +435,20 @@ fn screen_and_rank(
         tried - evaluated - no_place - deep - late,
     );
     let mut ranked = scored;
-    sort_by_pads_and_epsilon(&mut ranked);
+    ranked.sort_by(better_first);
     let full_sample = skin_sample(hand, 1);
     let full = AutograspOptions::default();
     // Down the ranking, `finalists` at a time, until `finalists` full evaluations succeed.
     let step = finalists.max(1);
-    let (mut pos, mut settled) = (0, 0);
-    let mut finals: Vec<Screened> = Vec::new();
+    let mut pos = 0;
+    let mut finals: Vec<Score> = Vec::new();
     while finals.len() < finalists && pos < ranked.len() {
         let end = (pos + step).min(ranked.len());
-        settled = settle(&mut ranked, settled, end);
         finals.extend(
             ranked[pos..end]
                 .par_iter()
                 .filter_map(|s| {
-                    let i = s.score.0;
+                    let i = s.0;
                     score(
                         i,
                         root_of(i)?,
@@ -501,22 +458,16 @@ fn screen_and_rank(
                         true,
                     )
                 })
-                .collect::<Vec<Screened>>(),
+                .collect::<Vec<Score>>(),
         );
         pos = end;
     }
-    let finals = rank_all(finals);
+    finals.sort_by(better_first);
     log::debug!(
         "placement search: finalists {:.2} s",
         started.elapsed().as_secs_f64()
     );
-    // In the order of pads and epsilon, ties (already settled or not) by index: a reserve's
-    // volume is not worth its hull.
-    let reserves = ranked[pos..]
-        .iter()
-        .take(RESERVES)
-        .map(|s| s.score.0)
-        .collect();
+    let reserves = ranked[pos..].iter().take(RESERVES).map(|s| s.0).collect();
     (finals, evaluated, reserves)
 }
 
@@ -633,7 +584,7 @@ fn skin_sample(hand: &dyn PosableHand, stride: usize) -> (Vec<usize>, Vec<usize>
 
 /// Placement search: `candidates` seeded random placements (directions uniform on the sphere,
 /// rolls uniform), screened cheaply, the best few evaluated in full; the result is the best of
-/// the full evaluations by (pads touching, epsilon, volume, contact area).
+/// the full evaluations by (pads touching, epsilon, nearness to force closure, contact area).
 ///
 /// A wrapping plan (power, [`GraspPlan::wrap`]) is placed with the palm 3 mm off the part, the
 /// part under the distal palm ([`power_placement`], [`POWER_REACH_MM`]) and, where the part
@@ -759,8 +710,6 @@ pub fn placement_search(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::grasp::quality::tests::scattered_contacts;
-    use crate::grasp::quality::{cone_wrenches, epsilon, quality};
 
     /// A power candidate is the plain placement moved toward the wrist along its own y: the
     /// part's surface that the plain placement's frame looked at, 3 mm along its palmar axis,
@@ -906,57 +855,5 @@ mod tests {
         for a in &r.reserves {
             assert!(finalists.iter().all(|f| *f != a), "{a:?}");
         }
-    }
-
-    /// The lazy ranking against the eager one it replaces: every candidate's volume from its
-    /// whole hull (0 with force closure) and one sort by pads, epsilon, volume and area. Same
-    /// order; and a prefix settled short of the ties without force closure leaves their hulls
-    /// unbuilt.
-    #[test]
-    fn lazy_volumes_rank_as_the_whole_hulls_do() {
-        let mut rng = Rng::new(7);
-        let mut lazy = Vec::new();
-        let mut eager = Vec::new();
-        for i in 0..40 {
-            let w = cone_wrenches(
-                &scattered_contacts(&mut rng, 2 + i % 7),
-                0.5,
-                &Point::origin(),
-                20.0,
-                SCREEN_CONE_EDGES,
-            );
-            let e = epsilon(&w);
-            let pads = i % 3;
-            let area = [10.0, 20.0][i % 2];
-            let volume = if e.force_closure {
-                0.0
-            } else {
-                quality(&w).volume
-            };
-            eager.push((i, pads, e.epsilon, volume, area));
-            lazy.push(Screened {
-                score: (i, pads, e.epsilon, 0.0, area),
-                wrenches: (!e.force_closure).then_some(w),
-            });
-        }
-        let closed = eager.iter().filter(|s| s.2 > 0.0).count();
-        assert!((5..=35).contains(&closed), "{closed} of 40 force closure");
-        eager.sort_by(better_first);
-        let mut partial: Vec<Screened> = lazy
-            .iter()
-            .map(|s| Screened {
-                score: s.score,
-                wrenches: s.wrenches.clone(),
-            })
-            .collect();
-        assert_eq!(rank_all(lazy), eager);
-        // The best pads group holds force closure grasps first: settling only its first
-        // candidate builds no hull.
-        sort_by_pads_and_epsilon(&mut partial);
-        assert!(partial[0].score.2 > 0.0, "{:?}", partial[0].score);
-        let end = settle(&mut partial, 0, 1);
-        assert_eq!(end, 1);
-        let unbuilt = partial.iter().filter(|s| s.wrenches.is_some()).count();
-        assert_eq!(unbuilt, eager.len() - closed);
     }
 }

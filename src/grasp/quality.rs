@@ -14,10 +14,13 @@
 //! [`JOGGLE`], which moves epsilon and volume by about 1e-7 relative). Epsilon alone
 //! ([`epsilon`], what a grasp evaluation needs) does not need the whole hull: the nearest-facet
 //! search ([`Hull::nearest_offset`]) refines only the facets near the origin and gives the whole
-//! hull's epsilon on the same joggled points. The volume quality needs every facet.
+//! hull's epsilon on the same joggled points. The volume quality needs every facet. A grasp
+//! without force closure has epsilon 0; how far it is from closure, the distance from the
+//! origin to the hull ([`closure_distance`]), needs no hull at all (Wolfe's nearest point).
 
 use super::contact::Contact;
 pub use crate::geometry::convex_hull_6d::{Hull, JOGGLE};
+use crate::geometry::min_norm_point::min_norm_point;
 use crate::geometry::{Point, Vec3};
 use nalgebra::Vector6;
 use serde::Serialize;
@@ -131,6 +134,18 @@ pub fn grasp_epsilon(contacts: &[Contact], mu: f64, com: &Point, rho: f64) -> Ep
     epsilon(&contact_wrenches(contacts, mu, com, rho))
 }
 
+/// How far a grasp without force closure is from it: the distance from the origin to the
+/// convex hull of its `wrenches` (0 when the hull holds the origin), by Wolfe's nearest point
+/// ([`min_norm_point`]), in the units of epsilon. Where epsilon measures the largest
+/// disturbance a force-closure grasp resists in every direction, this measures the smallest
+/// wrench the grasp cannot resist in the worst direction: the nearer to 0, the less is missing.
+/// `f64::INFINITY` for no wrenches.
+pub fn closure_distance(wrenches: &[Wrench]) -> f64 {
+    min_norm_point(wrenches, 1e-12)
+        .map(|(x, _)| x.norm())
+        .unwrap_or(f64::INFINITY)
+}
+
 /// Smallest epsilon counted as force closure: far above the joggle's effect ([`JOGGLE`]), far
 /// below any grasp's.
 const FORCE_CLOSURE_MIN: f64 = 1e-9;
@@ -141,6 +156,46 @@ pub(crate) mod tests {
     use crate::geometry::convex_hull_6d::{hyperplane, D};
     use crate::rng::Rng;
     use nalgebra::Matrix6;
+
+    /// One contact at the centre of mass: its cone's edges (n + mu t_k, no torque) lie on the
+    /// plane at distance |n| = 1 normal to n, around n, so the nearest point of their hull is
+    /// n itself and the distance from force closure is 1 whatever mu (closed form). An opposing
+    /// contact at the same point brings the origin into the hull: distance 0, though a pair
+    /// pressing along one line is not force closure (no torque about that line; epsilon says
+    /// so, the distance cannot). Grasps with force closure are at distance 0, those without
+    /// farther.
+    #[test]
+    fn closure_distance_closed_forms() {
+        let com = Point::origin();
+        for mu in [0.2, 0.5, 1.0] {
+            let one = [contact([0.0; 3], [0.0, 0.0, 1.0])];
+            let w = cone_wrenches(&one, mu, &com, 20.0, CONE_EDGES);
+            assert!(
+                (closure_distance(&w) - 1.0).abs() < 1e-9,
+                "{}",
+                closure_distance(&w)
+            );
+            let pair = [one[0].clone(), contact([0.0; 3], [0.0, 0.0, -1.0])];
+            let w = cone_wrenches(&pair, mu, &com, 20.0, CONE_EDGES);
+            assert!(closure_distance(&w) < 1e-9, "{}", closure_distance(&w));
+            assert!(!epsilon(&w).force_closure);
+        }
+        let mut rng = Rng::new(3);
+        let (mut closed, mut open) = (0, 0);
+        for n in [2, 3, 4, 6, 10, 20] {
+            for mu in [0.2, 0.5] {
+                let w = contact_wrenches(&scattered_contacts(&mut rng, n), mu, &com, 20.0);
+                let d = closure_distance(&w);
+                if epsilon(&w).force_closure {
+                    assert!(d < 1e-9, "{n} contacts: {d}");
+                    closed += 1;
+                } else {
+                    open += 1;
+                }
+            }
+        }
+        assert!(closed >= 3 && open >= 1, "{closed} / {open}");
+    }
 
     #[test]
     fn cross_polytope_closed_form() {
