@@ -79,19 +79,20 @@ pub fn min_norm_point<const N: usize>(
             for (l, a) in lambda.iter_mut().zip(&alpha) {
                 *l = theta * a + (1.0 - theta) * *l;
             }
-            // Drop the points whose weight vanished (at least the one that set theta).
+            // Drop the points whose weight vanished (at least the one that set theta), decided
+            // on the positions before any is removed.
             let min_k = (0..lambda.len())
                 .min_by(|&a, &b| lambda[a].total_cmp(&lambda[b]))
                 .expect("non-empty");
-            let mut k = 0;
-            while k < corral.len() {
-                if lambda[k] <= 1e-12 || k == min_k && lambda[k] <= 1e-9 {
-                    corral.remove(k);
-                    lambda.remove(k);
-                } else {
-                    k += 1;
-                }
-            }
+            let keep: Vec<bool> = lambda
+                .iter()
+                .enumerate()
+                .map(|(k, &l)| !(l <= 1e-12 || k == min_k && l <= 1e-9))
+                .collect();
+            let mut kept = keep.iter();
+            corral.retain(|_| *kept.next().expect("one mark per point"));
+            let mut kept = keep.iter();
+            lambda.retain(|_| *kept.next().expect("one mark per point"));
             if corral.is_empty() {
                 return None;
             }
