@@ -140,14 +140,9 @@ fn affine_minimum<const N: usize>(
     }
     let mut b = DVector::zeros(m + 1);
     b[m] = 1.0;
-    let lu = a.full_piv_lu();
-    // Relative singularity: the pivots of an affinely dependent corral vanish against the
-    // Gram matrix's scale.
-    let d = lu.determinant().abs();
-    if !d.is_finite() || d == 0.0 {
-        return None;
-    }
-    let sol = lu.solve(&b)?;
+    // An affinely dependent corral makes the system singular (no solution) or, with round-off,
+    // nearly so (huge or non-finite weights).
+    let sol = a.full_piv_lu().solve(&b)?;
     let alpha: Vec<f64> = sol.iter().take(m).copied().collect();
     if alpha.iter().any(|x| !x.is_finite()) || alpha.iter().map(|x| x.abs()).sum::<f64>() > 1e9 {
         return None;

@@ -32,13 +32,12 @@ pub const SQUEEZE_MM: f64 = 1.5;
 
 /// How deep a wrapping digit's [`squeeze`] may press the phalanges a closing joint carries
 /// (distal to its own), mm. The wrap leaves the distal phalanx touching last, so with every link
-/// held to [`SQUEEZE_MM`] the fingertip reached it first and stopped the MCP and PIP: the
-/// squeeze pressed the fingertips 1.5 mm and the middle and proximal phalanges 0-0.9 mm; the
-/// fingertips' push, curled back over the handle, slid it along the palm toward the wrist and
-/// out of the grip. Letting the
-/// carried pad sink to 2 mm (its pulp is the thickest, and firm grips compress it by 1 to 2 mm,
-/// Serina et al. 1997) lets the proximal and middle phalanges be pressed too. The hold test
-/// counts no ball deeper than the squeeze ([`super::hold`]), so the fingertip pushes no harder.
+/// held to [`SQUEEZE_MM`] the fingertip reached it first and stopped the MCP and PIP, which left
+/// the middle and proximal phalanges barely pressed; the fingertips' push, curled back over the
+/// handle, slid it along the palm toward the wrist and out of the grip. Letting the carried pad
+/// sink deeper (its pulp is the thickest, and firm grips compress it by 1 to 2 mm, Serina et al.
+/// 1997) lets the proximal and middle phalanges be pressed too. The hold test counts no ball
+/// deeper than the squeeze ([`super::hold`]), so the fingertip pushes no harder.
 pub const WRAP_CARRIED_SQUEEZE_MM: f64 = 2.0;
 
 /// Settings of [`autograsp`].

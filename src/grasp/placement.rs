@@ -315,9 +315,9 @@ fn closed_quality(
 ///
 /// The third key orders the grasps without force closure, which all tie at epsilon 0. It was
 /// the volume of the wrench space's hull: tens of thousands of facets for a few hundred
-/// wrenches, most of a search's time where finalists tie (0.2-0.5 s a hull), and 0 where the
-/// hull's construction failed on a legitimate grasp. The distance says instead how much is
-/// missing for force closure, by Wolfe's nearest point in milliseconds, and never fails.
+/// wrenches, most of a search's time where finalists tie, and 0 where the hull's construction
+/// failed on a legitimate grasp. The distance says instead how much is missing for force
+/// closure, by Wolfe's nearest point without any hull, and never fails.
 type Score = (usize, usize, f64, f64, f64);
 
 /// The order [`screen_and_rank`] keeps: best first by [`by_quality`], ties to the lower index.
@@ -325,15 +325,11 @@ fn better_first(a: &Score, b: &Score) -> std::cmp::Ordering {
     by_quality(b, a).then(a.0.cmp(&b.0))
 }
 
-/// The first keys of [`by_quality`]: pads touching, then epsilon.
-fn by_pads_and_epsilon(a: &Score, b: &Score) -> std::cmp::Ordering {
-    a.1.cmp(&b.1).then(a.2.total_cmp(&b.2))
-}
-
 /// The order of [`closed_quality`]'s scores, the index aside: pads touching, then epsilon,
 /// then nearness to force closure (for grasps without it), then contact area.
 fn by_quality(a: &Score, b: &Score) -> std::cmp::Ordering {
-    by_pads_and_epsilon(a, b)
+    a.1.cmp(&b.1)
+        .then(a.2.total_cmp(&b.2))
         .then(a.3.total_cmp(&b.3))
         .then(a.4.total_cmp(&b.4))
 }
