@@ -347,36 +347,44 @@ pub fn grasp_population(
     let mut touched = vec![0u32; part.mesh.n_vertices()];
     let mut grasped = 0;
     // The hands side by side on rayon's pool, which each scene's search and hold test share
-    // (a lone scene leaves cores idle in its serial parts); written in the order given.
-    let results: Vec<Result<GraspOutcome>> = hands
+    // (a lone scene leaves cores idle in its serial parts). Each hand's files, picture and
+    // touched part vertices are made there too (a serial loop after the scenes left one core
+    // idle for about a tenth of a population's time); the logs and the summary follow in the
+    // order given.
+    type Written = (Result<GraspOutcome>, Option<Vec<bool>>, Option<Vec<u8>>);
+    let results: Vec<Result<Written>> = hands
         .par_iter()
-        .map(|hand| {
+        .zip(&names)
+        .map(|(hand, name)| {
             let r = run_scene_on(&s, hand, &part, &part_warnings);
+            let (hit, picture) = match &r {
+                Ok(o) => (
+                    Some(crate::grasp::population::part_vertices_touched(
+                        &o.hand_mesh,
+                        &part.mesh,
+                        contact.tolerance_mm,
+                        contact.search_mm,
+                    )),
+                    Some(write_outputs(o, &out.join(name))?),
+                ),
+                Err(_) => (None, None),
+            };
             bar.inc(1);
-            r
+            Ok((r, hit, picture))
         })
         .collect();
-    for (((hand, name), folder), result) in hands.iter().zip(&names).zip(&folders).zip(results) {
-        let dir = out.join(name);
-        if let Ok(o) = &result {
+    for (((hand, name), folder), written) in hands.iter().zip(&names).zip(&folders).zip(results) {
+        let (result, hit, picture) = written?;
+        if let Some(hit) = hit {
             grasped += 1;
-            let hit = crate::grasp::population::part_vertices_touched(
-                &o.hand_mesh,
-                &part.mesh,
-                contact.tolerance_mm,
-                contact.search_mm,
-            );
             for (t, h) in touched.iter_mut().zip(hit) {
                 *t += h as u32;
             }
         }
-        pictures.push(match &result {
-            Ok(o) => Some(write_outputs(o, &dir)?),
-            Err(e) => {
-                log::warn!("{}: {e}", folder.display());
-                None
-            }
-        });
+        if let Err(e) = &result {
+            log::warn!("{}: {e}", folder.display());
+        }
+        pictures.push(picture);
         let report = result
             .as_ref()
             .map(|o| &o.report)
@@ -391,7 +399,6 @@ pub fn grasp_population(
             }
         );
         outcomes.push(o);
-        bar.inc(1);
     }
     bar.finish_and_clear();
     let summary = summarise(&scene.display().to_string(), s.grasp.name(), outcomes);
