@@ -1839,7 +1839,8 @@ fn every_builtin_pose_keeps_its_elements_positive(model: &Path, tmp: &Path) {
 /// as the folder holding them): each hand's files in OUT/NAME/ and the same outcome for both
 /// (the same hand, the same seeded search); `population.json` counts them, the page needs
 /// nothing outside itself and shows both pictures and the chart; one hand's grasp.json is the
-/// single-hand command's (timings apart). Two models of one name, or a folder without models,
+/// single-hand command's (timings apart, and the wrench space's volume, which a population
+/// leaves out). Two models of one name, or a folder without models,
 /// are refused before any work, naming the folder.
 fn grasp_a_population(model: &Path, tmp: &Path) {
     let hands = tmp.join("hands");
@@ -1940,9 +1941,12 @@ fn grasp_a_population(model: &Path, tmp: &Path) {
         let mut v: serde_json::Value =
             serde_json::from_slice(&std::fs::read(p.join("grasp.json")).unwrap()).unwrap();
         v.as_object_mut().unwrap().remove("timings_s");
-        v
+        let volume = v.as_object_mut().unwrap().remove("volume").unwrap();
+        (v, volume)
     };
-    assert_eq!(read(&out.join("A")), read(&single));
+    let ((pop_a, pop_volume), (alone, volume)) = (read(&out.join("A")), read(&single));
+    assert_eq!(pop_a, alone);
+    assert!(pop_volume.is_null() && volume.as_f64().unwrap() > 0.0, "{volume}");
     // Refused before any work: two models named A; a folder without any model.
     let other = tmp.join("other/A");
     std::fs::create_dir_all(&other).unwrap();

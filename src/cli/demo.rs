@@ -154,10 +154,10 @@ pub fn demo(out: &Path) -> Result<()> {
             fist.warnings.len()
         );
         println!(
-            "  grasp of the 60 mm bottle (power, reconstructed hand): force closure {}, epsilon {:.4}, volume {:.2e}, holds {}, contact {:.0} mm², {}, {:.1} s; {}",
+            "  grasp of the 60 mm bottle (power, reconstructed hand): force closure {}, epsilon {:.4}, volume {}, holds {}, contact {:.0} mm², {}, {:.1} s; {}",
             grasp.force_closure,
             grasp.epsilon,
-            grasp.volume,
+            grasp.volume.map_or("not computed".into(), |v| format!("{v:.2e}")),
             grasp.holds,
             grasp.total_contact_area_mm2,
             grasp.envelope.describe(),

@@ -196,10 +196,10 @@ pub fn grasp(scene: &Path, model: Option<&Path>, out: &Path) -> Result<GraspRepo
         })
         .unwrap_or_default();
     log::info!(
-        "grasp: force closure {}, epsilon {:.4}, volume {:.3e}, holds {}{pushed}, contact {:.0} mm², {}; wrote {}",
+        "grasp: force closure {}, epsilon {:.4}, volume {}, holds {}{pushed}, contact {:.0} mm², {}; wrote {}",
         r.force_closure,
         r.epsilon,
-        r.volume,
+        r.volume.map_or("not computed".into(), |v| format!("{v:.3e}")),
         r.holds,
         r.total_contact_area_mm2,
         r.envelope.describe(),
@@ -356,7 +356,7 @@ pub fn grasp_population(
         .par_iter()
         .zip(&names)
         .map(|(hand, name)| {
-            let r = run_scene_on(&s, hand, &part, &part_warnings);
+            let r = run_scene_on(&s, hand, &part, &part_warnings, false);
             let (hit, picture) = match &r {
                 Ok(o) => (
                     Some(crate::grasp::population::part_vertices_touched(

@@ -116,8 +116,10 @@ pub struct GraspReport {
     pub force_closure: bool,
     /// Ferrari-Canny epsilon.
     pub epsilon: f64,
-    /// GWS volume.
-    pub volume: f64,
+    /// Volume of the grasp wrench space (its whole 6-D hull); `None` (`null`) where it was not
+    /// asked for: a population run ([`run_scene_on`]) leaves it out, as its summary does not
+    /// use it and the hull is about a tenth of such a run's time.
+    pub volume: Option<f64>,
     /// Whether the rapier hold test held in all six gravity directions.
     pub holds: bool,
     /// The hold test per direction.
@@ -372,7 +374,7 @@ pub fn run_scene(scene: &Scene, hand: &dyn PosableHand) -> Result<GraspOutcome> 
         log::warn!("{w}");
     }
     let part_s = clock.elapsed().as_secs_f64();
-    let mut o = run_scene_on(scene, hand, &part, &warnings)?;
+    let mut o = run_scene_on(scene, hand, &part, &warnings, true)?;
     o.report.timings_s.part_s = part_s;
     o.report.timings_s.total_s += part_s;
     Ok(o)
@@ -380,13 +382,16 @@ pub fn run_scene(scene: &Scene, hand: &dyn PosableHand) -> Result<GraspOutcome> 
 
 /// [`run_scene`] on the scene's part as [`scene_part`] made it (`part_warnings`: its warnings,
 /// kept in the report), so that many hands share one part: it is read, cleaned and indexed
-/// once.
+/// once. `volume`: whether to build the grasp wrench space's whole hull for
+/// [`GraspReport::volume`] (`None` without).
 pub fn run_scene_on(
     scene: &Scene,
     hand: &dyn PosableHand,
     part: &PartShape,
     part_warnings: &[String],
+    volume: bool,
 ) -> Result<GraspOutcome> {
+    let want_volume = volume;
     let mut timings = Timings::default();
     let started = std::time::Instant::now();
     let mut warnings = part_warnings.to_vec();
@@ -457,7 +462,16 @@ pub fn run_scene_on(
         // The first is reported whether it holds or not: its volume is built beside its hold
         // test; a runner-up's only once it holds (the hull cost more than a hold test that
         // drops at once).
-        let attempt = grasp_from(scene, hand, part, &plan, approach, &areas, run, k == 0);
+        let attempt = grasp_from(
+            scene,
+            hand,
+            part,
+            &plan,
+            approach,
+            &areas,
+            run,
+            want_volume && k == 0,
+        );
         let attempt = match attempt {
             Ok(a) => a,
             Err(e) if k == 0 => return Err(e),
@@ -512,11 +526,13 @@ pub fn run_scene_on(
     timings.autograsp_s = own.autograsp_s;
     timings.evaluate_s = own.evaluate_s;
     timings.hold_s = own.hold_s;
-    let volume = volume.unwrap_or_else(|| {
-        let clock = std::time::Instant::now();
-        let v = volume_of(scene, part, &cs);
-        timings.evaluate_s += clock.elapsed().as_secs_f64();
-        v
+    let volume = volume.or_else(|| {
+        want_volume.then(|| {
+            let clock = std::time::Instant::now();
+            let v = volume_of(scene, part, &cs);
+            timings.evaluate_s += clock.elapsed().as_secs_f64();
+            v
+        })
     });
     let dry: Vec<&str> = plan
         .pads
