@@ -214,8 +214,24 @@ pub struct PlacementResult {
     pub reserves: Vec<Isometry3<f64>>,
 }
 
-/// Skin vertex stride of the placement search's screening (closing checks and contacts).
+/// Skin vertex stride of the placement search's screening (closing checks and contacts) for a
+/// precision grasp: its pads are fingertip patches, which a sparser sample ranks worse.
 pub(crate) const SCREEN_STRIDE: usize = 4;
+
+/// [`SCREEN_STRIDE`] of a power grasp, whose contacts spread over the palm and every
+/// phalanx: a sample half as dense ranks its candidates as well for half the closing's
+/// queries (checked over a population of both bodies: the same share holds and wraps).
+pub(crate) const POWER_SCREEN_STRIDE: usize = 8;
+
+/// The screening's skin vertex stride for `plan` ([`SCREEN_STRIDE`], or
+/// [`POWER_SCREEN_STRIDE`] for a plan without pads).
+fn screen_stride(plan: &GraspPlan) -> usize {
+    if plan.pads.is_empty() {
+        POWER_SCREEN_STRIDE
+    } else {
+        SCREEN_STRIDE
+    }
+}
 
 /// Friction cone edges of the screening quality (a subset of the full cone's edges, so its
 /// epsilon is a lower bound of the full one's).
@@ -337,7 +353,7 @@ fn by_quality(a: &Score, b: &Score) -> std::cmp::Ordering {
 /// The placement search's two stages on candidate approaches `0..n` (`approach_of(i)`: the
 /// grasp frame in the part's world, `None` to skip): in index order until [`SCREEN_CLOSED`]
 /// have closed, each screened (parallel, until `time_limit_s`) by the coarse autograsp
-/// ([`screening_options`]) and scored on every [`SCREEN_STRIDE`]-th vertex with
+/// ([`screening_options`]) and scored on every [`screen_stride`]-th vertex with
 /// [`SCREEN_CONE_EDGES`]-edge cones, a start deep inside the part rejected by the voxel grid;
 /// then down that ranking, `finalists` at a time until `finalists` succeed, closed by the
 /// default autograsp, squeezed and scored in full. `envelope_first`: the first ranking key
@@ -359,7 +375,7 @@ fn screen_and_rank(
 ) -> (Vec<Score>, usize, Vec<usize>) {
     use rayon::prelude::*;
     let gf = grasp_frame(hand);
-    let coarse = screening_options();
+    let coarse = screening_options(plan);
     // A bar only where status lines are logged (the command line without --quiet).
     let bar = if log::log_enabled!(log::Level::Info) && n > 50 {
         indicatif::ProgressBar::new(n as u64)
@@ -367,7 +383,7 @@ fn screen_and_rank(
         indicatif::ProgressBar::hidden()
     };
     let started = std::time::Instant::now();
-    let coarse_sample = skin_sample(hand, SCREEN_STRIDE);
+    let coarse_sample = skin_sample(hand, coarse.stride);
     let root_of = |i: usize| Some(approach_of(i)? * gf.inverse());
     let score = |i: usize, root, opts: &AutograspOptions, sample: &_, edges, squeezed| {
         closed_quality(
@@ -468,13 +484,13 @@ fn screen_and_rank(
 }
 
 /// The screening's coarse autograsp: steps of 0.1 in the closing parameter, every
-/// [`SCREEN_STRIDE`]-th skin vertex, links up to 2 mm deep.
-fn screening_options() -> AutograspOptions {
+/// [`screen_stride`]-th skin vertex of `plan`'s hand, links up to 2 mm deep.
+fn screening_options(plan: &GraspPlan) -> AutograspOptions {
     AutograspOptions {
         step: 0.1,
         min_step: 0.05,
         max_depth_mm: 2.0,
-        stride: SCREEN_STRIDE,
+        stride: screen_stride(plan),
         ..AutograspOptions::default()
     }
 }
@@ -603,7 +619,7 @@ fn skin_sample(hand: &dyn PosableHand, stride: usize) -> (Vec<usize>, Vec<usize>
 /// [`SCREEN_CLOSED`] candidates have closed, stops early at `time_limit_s`): a placement where
 /// a skin vertex is deep inside the part at the preshape is rejected by the voxel grid (every
 /// vertex); the others are closed by a coarse autograsp (steps of 0.1, every
-/// [`SCREEN_STRIDE`]-th vertex) and scored with contacts on the same vertices and friction cones of [`SCREEN_CONE_EDGES`] edges (a lower
+/// [`screen_stride`]-th vertex) and scored with contacts on the same vertices and friction cones of [`SCREEN_CONE_EDGES`] edges (a lower
 /// bound of the full epsilon). The [`FINALISTS`] best are closed by the default autograsp,
 /// squeezed ([`squeeze`]) and scored by the full model (every vertex,
 /// [`super::quality::CONE_EDGES`] edges), as the scene evaluation will; a candidate whose full
@@ -664,7 +680,7 @@ pub fn placement_search(
             .map_or(roll, |r| r + power[i].1)
     };
     // The back-off checks the start as the screening's autograsp will.
-    let screen_opts = screening_options();
+    let screen_opts = screening_options(plan);
     let pad = pad_point(hand, plan);
     let press = press_travel(hand, plan);
     let approach_of = |i: usize| match (&pad, &press) {
