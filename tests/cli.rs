@@ -1946,7 +1946,10 @@ fn grasp_a_population(model: &Path, tmp: &Path) {
     };
     let ((pop_a, pop_volume), (alone, volume)) = (read(&out.join("A")), read(&single));
     assert_eq!(pop_a, alone);
-    assert!(pop_volume.is_null() && volume.as_f64().unwrap() > 0.0, "{volume}");
+    assert!(
+        pop_volume.is_null() && volume.as_f64().unwrap() > 0.0,
+        "{volume}"
+    );
     // Refused before any work: two models named A; a folder without any model.
     let other = tmp.join("other/A");
     std::fs::create_dir_all(&other).unwrap();
