@@ -349,8 +349,7 @@ pub fn grasp_population(
     // The hands side by side on rayon's pool, which each scene's search and hold test share
     // (a lone scene leaves cores idle in its serial parts). Each hand's files, picture and
     // touched part vertices are made there too (a serial loop after the scenes left one core
-    // idle for about a tenth of a population's time); the logs and the summary follow in the
-    // order given.
+    // idle while the other wrote); the logs and the summary follow in the order given.
     type Written = (Result<GraspOutcome>, Option<Vec<bool>>, Option<Vec<u8>>);
     let results: Vec<Result<Written>> = hands
         .par_iter()

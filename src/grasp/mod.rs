@@ -118,7 +118,7 @@ pub struct GraspReport {
     pub epsilon: f64,
     /// Volume of the grasp wrench space (its whole 6-D hull); `None` (`null`) where it was not
     /// asked for: a population run ([`run_scene_on`]) leaves it out, as its summary does not
-    /// use it and the hull is about a tenth of such a run's time.
+    /// use it and the whole hull costs more than many a hold test.
     pub volume: Option<f64>,
     /// Whether the rapier hold test held in all six gravity directions.
     pub holds: bool,
