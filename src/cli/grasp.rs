@@ -350,39 +350,44 @@ pub fn grasp_population(
     // (a lone scene leaves cores idle in its serial parts). Each hand's files, picture and
     // touched part vertices are made there too (a serial loop after the scenes left one core
     // idle while the other wrote); the logs and the summary follow in the order given.
-    type Written = (Result<GraspOutcome>, Option<Vec<bool>>, Option<Vec<u8>>);
+    // Per hand: its scene's outcome with the part vertices it touches and its contact picture,
+    // or the scene's error; the outer error is a file that could not be written.
+    type Written = Result<(GraspOutcome, Vec<bool>, Vec<u8>)>;
     let results: Vec<Result<Written>> = hands
         .par_iter()
         .zip(&names)
         .map(|(hand, name)| {
-            let r = run_scene_on(&s, hand, &part, &part_warnings, false);
-            let (hit, picture) = match &r {
-                Ok(o) => (
-                    Some(crate::grasp::population::part_vertices_touched(
+            let written = match run_scene_on(&s, hand, &part, &part_warnings, false) {
+                Ok(o) => {
+                    let hit = crate::grasp::population::part_vertices_touched(
                         &o.hand_mesh,
                         &part.mesh,
                         contact.tolerance_mm,
                         contact.search_mm,
-                    )),
-                    Some(write_outputs(o, &out.join(name))?),
-                ),
-                Err(_) => (None, None),
+                    );
+                    let picture = write_outputs(&o, &out.join(name))?;
+                    Ok((o, hit, picture))
+                }
+                Err(e) => Err(e),
             };
             bar.inc(1);
-            Ok((r, hit, picture))
+            Ok(written)
         })
         .collect();
     for (((hand, name), folder), written) in hands.iter().zip(&names).zip(&folders).zip(results) {
-        let (result, hit, picture) = written?;
-        if let Some(hit) = hit {
-            grasped += 1;
-            for (t, h) in touched.iter_mut().zip(hit) {
-                *t += h as u32;
+        let (result, picture) = match written? {
+            Ok((o, hit, picture)) => {
+                grasped += 1;
+                for (t, h) in touched.iter_mut().zip(hit) {
+                    *t += h as u32;
+                }
+                (Ok(o), Some(picture))
             }
-        }
-        if let Err(e) = &result {
-            log::warn!("{}: {e}", folder.display());
-        }
+            Err(e) => {
+                log::warn!("{}: {e}", folder.display());
+                (Err(e), None)
+            }
+        };
         pictures.push(picture);
         let report = result
             .as_ref()

@@ -382,16 +382,15 @@ pub fn run_scene(scene: &Scene, hand: &dyn PosableHand) -> Result<GraspOutcome> 
 
 /// [`run_scene`] on the scene's part as [`scene_part`] made it (`part_warnings`: its warnings,
 /// kept in the report), so that many hands share one part: it is read, cleaned and indexed
-/// once. `volume`: whether to build the grasp wrench space's whole hull for
+/// once. `with_volume`: whether to build the grasp wrench space's whole hull for
 /// [`GraspReport::volume`] (`None` without).
 pub fn run_scene_on(
     scene: &Scene,
     hand: &dyn PosableHand,
     part: &PartShape,
     part_warnings: &[String],
-    volume: bool,
+    with_volume: bool,
 ) -> Result<GraspOutcome> {
-    let want_volume = volume;
     let mut timings = Timings::default();
     let started = std::time::Instant::now();
     let mut warnings = part_warnings.to_vec();
@@ -470,7 +469,7 @@ pub fn run_scene_on(
             approach,
             &areas,
             run,
-            want_volume && k == 0,
+            with_volume && k == 0,
         );
         let attempt = match attempt {
             Ok(a) => a,
@@ -527,7 +526,7 @@ pub fn run_scene_on(
     timings.evaluate_s = own.evaluate_s;
     timings.hold_s = own.hold_s;
     let volume = volume.or_else(|| {
-        want_volume.then(|| {
+        with_volume.then(|| {
             let clock = std::time::Instant::now();
             let v = volume_of(scene, part, &cs);
             timings.evaluate_s += clock.elapsed().as_secs_f64();
