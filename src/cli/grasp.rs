@@ -1,6 +1,7 @@
 //! `ergohand grasp`: a scene's hand closed on its part, and the files that show the grasp.
 
 use crate::error::{Error, Result};
+use crate::geometry::CreaseSplit;
 use crate::grasp::contact::ContactOptions;
 use crate::grasp::{
     contact_colours, load_hand, run_scene, run_scene_on, scene, GraspOutcome, GraspReport,
@@ -13,8 +14,9 @@ use crate::validate::view_page::{
 use std::path::{Path, PathBuf};
 
 /// Write `grasp.json`, `grasp.glb` and `contact_map.png` of an outcome into `out`; returns
-/// the PNG's bytes (for a page that embeds the picture).
-pub(crate) fn write_outputs(o: &GraspOutcome, out: &Path) -> Result<Vec<u8>> {
+/// the PNG's bytes (for a page that embeds the picture). `part`: the outcome's part with its
+/// vertices split at creases ([`part_with_creases`]; the same for every hand of one scene).
+pub(crate) fn write_outputs(o: &GraspOutcome, part: &CreaseSplit, out: &Path) -> Result<Vec<u8>> {
     let _held = crate::io::atomic::FolderLock::acquire(out)?;
     let json = serde_json::to_string_pretty(&o.report)
         .map_err(|e| Error::invalid(format!("grasp.json: {e}")))?;
@@ -36,12 +38,6 @@ pub(crate) fn write_outputs(o: &GraspOutcome, out: &Path) -> Result<Vec<u8>> {
             name: DISTANCE_ATTRIBUTE.into(),
             values,
         });
-    // The skin is smooth (one normal per vertex keeps it homologous with skin.obj); the CAD
-    // part keeps its sharp edges (vertices split at creases).
-    let part = crate::geometry::crease_normals(
-        &o.part_mesh,
-        crate::geometry::crease_normals::DEFAULT_CREASE_DEG,
-    );
     let scene = crate::io::gltf::Scene {
         meshes: vec![
             crate::io::gltf::SceneMesh {
@@ -56,8 +52,8 @@ pub(crate) fn write_outputs(o: &GraspOutcome, out: &Path) -> Result<Vec<u8>> {
             crate::io::gltf::SceneMesh {
                 name: "part".into(),
                 colors: Some(vec![lin(part_grey); part.mesh.n_vertices()]),
-                mesh: part.mesh,
-                normals: Some(part.normals),
+                mesh: part.mesh.clone(),
+                normals: Some(part.normals.clone()),
                 skin: None,
                 attributes: Vec::new(),
                 morph_targets: Vec::new(),
@@ -83,6 +79,12 @@ pub(crate) fn write_outputs(o: &GraspOutcome, out: &Path) -> Result<Vec<u8>> {
     let png = img.to_png().map_err(|e| e.in_file(&path))?;
     crate::io::atomic::write_bytes_atomic(&path, &png)?;
     Ok(png)
+}
+
+/// The part as `grasp.glb` shows it: the skin is smooth (one normal per vertex keeps it
+/// homologous with skin.obj), the CAD part keeps its sharp edges (vertices split at creases).
+pub(crate) fn part_with_creases(part: &crate::geometry::TriMesh) -> CreaseSplit {
+    crate::geometry::crease_normals(part, crate::geometry::crease_normals::DEFAULT_CREASE_DEG)
 }
 
 /// The hand's attribute in `grasp.glb`: each skin vertex's signed distance to the part, mm
@@ -219,7 +221,7 @@ fn grasp_job(scene: &Path, model: Option<&Path>, out: &Path) -> Result<GraspRepo
     check_output_dir(out, &OUTPUT_FILES, "--out", &inputs)?;
     let hand = load_hand(model.as_deref(), s.side)?;
     let o = run_scene(&s, &hand)?;
-    write_outputs(&o, out)?;
+    write_outputs(&o, &part_with_creases(&o.part_mesh), out)?;
     Ok(o.report)
 }
 
@@ -337,6 +339,7 @@ pub fn grasp_population(
     for w in &part_warnings {
         log::warn!("{w}");
     }
+    let creased = part_with_creases(&part.mesh);
     let bar = crate::cli::progress(hands.len() as u64, "hands");
     let mut outcomes = Vec::new();
     let mut pictures = Vec::new();
@@ -365,7 +368,7 @@ pub fn grasp_population(
                         contact.tolerance_mm,
                         contact.search_mm,
                     );
-                    let picture = write_outputs(&o, &out.join(name))?;
+                    let picture = write_outputs(&o, &creased, &out.join(name))?;
                     Ok((o, hit, picture))
                 }
                 Err(e) => Err(e),

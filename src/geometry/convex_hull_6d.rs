@@ -11,6 +11,7 @@
 //! joggled points.
 
 use nalgebra::Vector6;
+use std::sync::atomic::{AtomicBool, Ordering};
 
 /// The dimension.
 pub const D: usize = 6;
@@ -196,7 +197,13 @@ impl Hull {
     /// [`JOGGLE`] and 100 and 10,000 times larger (qhull retries `QJ` the same way) until the
     /// construction succeeds and the hull passes its convexity check.
     pub fn new(input: &[Vector6<f64>]) -> Option<Hull> {
-        with_joggles(input, Hull::build)
+        with_joggles(input, |p, j| Hull::build(p, j, None))
+    }
+
+    /// [`Hull::new`], given up (`None`) as soon as `stop` is found set: a caller that builds
+    /// the hull beside other work which may make it unwanted. Checked once per point added.
+    pub fn new_unless(input: &[Vector6<f64>], stop: &AtomicBool) -> Option<Hull> {
+        with_joggles(input, |p, j| Hull::build(p, j, Some(stop)))
     }
 
     /// The distance from the origin to the nearest facet of the hull of `input` when the
@@ -319,7 +326,11 @@ impl Hull {
         Some((h, rest, eps))
     }
 
-    pub(crate) fn build(input: &[Vector6<f64>], joggle: f64) -> Option<Hull> {
+    pub(crate) fn build(
+        input: &[Vector6<f64>],
+        joggle: f64,
+        stop: Option<&AtomicBool>,
+    ) -> Option<Hull> {
         let (mut h, all, eps) = Hull::start(input, joggle)?;
         h.assign(&all, &(0..=D).collect::<Vec<_>>(), eps);
         let mut guard = 0usize;
@@ -328,7 +339,7 @@ impl Hull {
         let mut s = Scratch::default();
         loop {
             guard += 1;
-            if guard > 200_000 {
+            if guard > 200_000 || stop.is_some_and(|s| s.load(Ordering::Relaxed)) {
                 return None;
             }
             let Some(f0) = std::iter::from_fn(|| pending.pop())

@@ -113,13 +113,28 @@ impl PartShape {
                 false
             }
         };
-        let tree = AabbTree::owning(mesh.clone());
-        let normals = closed.then(|| PseudoNormals::new(&mesh));
-        let com = if closed {
-            solid_centroid(&mesh).unwrap_or_else(|| mesh.vertex_centroid())
-        } else {
-            mesh.vertex_centroid()
-        };
+        // The two broad phases (their flood fills are most of a large part's set-up) beside
+        // the face tree and the rest.
+        let ((grid, touch_grid), (tree, normals, com)) = rayon::join(
+            || {
+                rayon::join(
+                    || NearGrid::new(&mesh, band_mm, closed),
+                    || NearGrid::new(&mesh, TOUCH_BAND_MM, closed),
+                )
+            },
+            || {
+                let com = if closed {
+                    solid_centroid(&mesh).unwrap_or_else(|| mesh.vertex_centroid())
+                } else {
+                    mesh.vertex_centroid()
+                };
+                (
+                    AabbTree::owning(mesh.clone()),
+                    closed.then(|| PseudoNormals::new(&mesh)),
+                    com,
+                )
+            },
+        );
         let max_radius = mesh
             .vertices
             .iter()
@@ -134,10 +149,6 @@ impl PartShape {
                 size.x, size.y, size.z
             ));
         }
-        let (grid, touch_grid) = rayon::join(
-            || NearGrid::new(&mesh, band_mm, closed),
-            || NearGrid::new(&mesh, TOUCH_BAND_MM, closed),
-        );
         Ok((
             PartShape {
                 face_normals: mesh.face_normals(),

@@ -249,21 +249,10 @@ struct Attempt {
     timings: Timings,
 }
 
-/// The volume quality of the grasp wrench space of contacts `cs` on `part`.
-fn volume_of(scene: &Scene, part: &PartShape, cs: &ContactSet) -> f64 {
-    quality::grasp_quality(
-        &cs.contacts,
-        scene.friction,
-        &part.centre_of_mass,
-        part.max_radius,
-    )
-    .volume
-}
-
 /// Close `hand` on `part` from `approach` (the grasp frame in the world): [`autograsp`], the
 /// [`autograsp::squeeze`], [`evaluate`], the finger-finger check and the hold test, run as
-/// `run` says; the volume quality beside the hold test with `volume`, else left to the caller
-/// (a runner-up's is wanted only when it holds and is kept).
+/// `run` says; the volume quality beside the hold test with `volume` (given up when a
+/// [`hold::HoldRun::UntilDrop`] test drops, the try then not kept), else left to the caller.
 #[allow(clippy::too_many_arguments)]
 fn grasp_from(
     scene: &Scene,
@@ -296,8 +285,9 @@ fn grasp_from(
     );
     timings.evaluate_s = clock.elapsed().as_secs_f64();
     let clock = std::time::Instant::now();
-    // The volume quality needs the whole hull of the grasp wrench space (a quarter of a second
-    // on one core), which nothing else waits for: it is built beside the hold test.
+    // The volume quality needs the whole hull of the grasp wrench space (up to a second on one
+    // core), which nothing else waits for: it is built beside the hold test, and given up as
+    // soon as a hold test that stops at the first drop has dropped (the try is not kept).
     let hold_test = || {
         hold::hold_test_hand(
             hand,
@@ -309,8 +299,25 @@ fn grasp_from(
         )
     };
     let (hold, volume) = if volume {
-        let (h, v) = rayon::join(hold_test, || volume_of(scene, part, &cs));
-        (h, Some(v))
+        let unwanted = std::sync::atomic::AtomicBool::new(false);
+        rayon::join(
+            || {
+                let h = hold_test();
+                if run == hold::HoldRun::UntilDrop && !h.as_ref().is_ok_and(|h| h.holds) {
+                    unwanted.store(true, std::sync::atomic::Ordering::Relaxed);
+                }
+                h
+            },
+            || {
+                quality::grasp_volume_unless(
+                    &cs.contacts,
+                    scene.friction,
+                    &part.centre_of_mass,
+                    part.max_radius,
+                    &unwanted,
+                )
+            },
+        )
     } else {
         (hold_test(), None)
     };
@@ -458,19 +465,9 @@ pub fn run_scene_on(
         } else {
             hold::HoldRun::UntilDrop
         };
-        // The first is reported whether it holds or not: its volume is built beside its hold
-        // test; a runner-up's only once it holds (the hull cost more than a hold test that
-        // drops at once).
-        let attempt = grasp_from(
-            scene,
-            hand,
-            part,
-            &plan,
-            approach,
-            &areas,
-            run,
-            with_volume && k == 0,
-        );
+        // Each try's volume is built beside its hold test: the first is reported whether it
+        // holds or not, a runner-up's hull is given up when it drops.
+        let attempt = grasp_from(scene, hand, part, &plan, approach, &areas, run, with_volume);
         let attempt = match attempt {
             Ok(a) => a,
             Err(e) if k == 0 => return Err(e),
@@ -525,14 +522,8 @@ pub fn run_scene_on(
     timings.autograsp_s = own.autograsp_s;
     timings.evaluate_s = own.evaluate_s;
     timings.hold_s = own.hold_s;
-    let volume = volume.or_else(|| {
-        with_volume.then(|| {
-            let clock = std::time::Instant::now();
-            let v = volume_of(scene, part, &cs);
-            timings.evaluate_s += clock.elapsed().as_secs_f64();
-            v
-        })
-    });
+    // The kept try's volume was built beside its hold test: it is the first (whose hull is
+    // never given up) or a runner-up that held.
     let dry: Vec<&str> = plan
         .pads
         .iter()

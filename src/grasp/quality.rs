@@ -104,6 +104,23 @@ pub fn quality(wrenches: &[Wrench]) -> Quality {
     }
 }
 
+/// The volume quality of `contacts` with friction `mu` on a part (`com`, `rho`), as
+/// [`grasp_quality`] gives it, unless `stop` is set while the hull is built (`None` then).
+pub fn grasp_volume_unless(
+    contacts: &[Contact],
+    mu: f64,
+    com: &Point,
+    rho: f64,
+    stop: &std::sync::atomic::AtomicBool,
+) -> Option<f64> {
+    let w = contact_wrenches(contacts, mu, com, rho);
+    match Hull::new_unless(&w, stop) {
+        Some(h) => Some(h.volume()),
+        None if stop.load(std::sync::atomic::Ordering::Relaxed) => None,
+        None => Some(0.0),
+    }
+}
+
 /// Quality of `contacts` with friction `mu` on a part (`com`, `rho`).
 pub fn grasp_quality(contacts: &[Contact], mu: f64, com: &Point, rho: f64) -> Quality {
     quality(&contact_wrenches(contacts, mu, com, rho))
@@ -237,6 +254,32 @@ pub(crate) mod tests {
             "{q:?}"
         );
         assert!((epsilon(&w).epsilon - 1.0).abs() < 2e-3);
+    }
+
+    /// The volume built beside other work is the whole hull's, and a hull asked to stop gives
+    /// none (the stop is read before the first point is added).
+    #[test]
+    fn a_volume_given_up_is_none_and_one_not_given_up_is_the_whole_hulls() {
+        use std::sync::atomic::AtomicBool;
+        let mut rng = Rng::new(5);
+        let com = Point::origin();
+        let contacts = scattered_contacts(&mut rng, 10);
+        let whole = grasp_quality(&contacts, 0.5, &com, 20.0).volume;
+        assert!(whole > 0.0);
+        let go_on = AtomicBool::new(false);
+        assert_eq!(
+            grasp_volume_unless(&contacts, 0.5, &com, 20.0, &go_on),
+            Some(whole)
+        );
+        let stop = AtomicBool::new(true);
+        assert_eq!(grasp_volume_unless(&contacts, 0.5, &com, 20.0, &stop), None);
+        // Points that do not span 6-D have no hull: volume 0, as the whole quality says.
+        let one = [contacts[0].clone()];
+        assert_eq!(grasp_quality(&one, 0.5, &com, 20.0).volume, 0.0);
+        assert_eq!(
+            grasp_volume_unless(&one, 0.5, &com, 20.0, &go_on),
+            Some(0.0)
+        );
     }
 
     #[test]
@@ -475,7 +518,7 @@ pub(crate) mod tests {
             let (whole, nearest) = [1.0, 1e2, 1e4]
                 .into_iter()
                 .find_map(|m| {
-                    let h = Hull::build(w, JOGGLE * m)?;
+                    let h = Hull::build(w, JOGGLE * m, None)?;
                     Some((Some(h.min_offset()), Hull::expand_nearest(w, JOGGLE * m)))
                 })
                 .unwrap_or((None, Hull::nearest_offset(w)));
