@@ -453,6 +453,18 @@ pub fn approach_to_contact(
     (Translation3::from(axis * s) * root, s)
 }
 
+/// A hand closed on the part from one approach with the default [`AutograspOptions`]: the
+/// [`autograsp`] and the [`squeeze`] after it (the squeezed pose and what the squeeze did).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Closing {
+    /// The autograsp.
+    pub autograsp: Autograsp,
+    /// The posture after the squeeze.
+    pub pose: Pose,
+    /// What the squeeze did.
+    pub squeeze: Squeeze,
+}
+
 /// What [`squeeze`] did.
 #[derive(Clone, Debug, PartialEq, serde::Serialize)]
 pub struct Squeeze {

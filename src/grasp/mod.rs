@@ -250,7 +250,8 @@ struct Attempt {
 }
 
 /// Close `hand` on `part` from `approach` (the grasp frame in the world): [`autograsp`], the
-/// [`autograsp::squeeze`], [`evaluate`], the finger-finger check and the hold test, run as
+/// [`autograsp::squeeze`] (or the `closing` already made from there with the default
+/// options), [`evaluate`], the finger-finger check and the hold test, run as
 /// `run` says; the volume quality beside the hold test with `volume` (given up when a
 /// [`hold::HoldRun::UntilDrop`] test drops, the try then not kept), else left to the caller.
 #[allow(clippy::too_many_arguments)]
@@ -260,16 +261,23 @@ fn grasp_from(
     part: &PartShape,
     plan: &plan::GraspPlan,
     approach: &nalgebra::Isometry3<f64>,
+    closing: Option<autograsp::Closing>,
     areas: &[f64],
     run: hold::HoldRun,
     volume: bool,
 ) -> Result<Attempt> {
     let mut timings = Timings::default();
     let clock = std::time::Instant::now();
-    let root = root_for(hand, &nalgebra::Isometry3::identity(), approach);
-    let opts = AutograspOptions::default();
-    let g = autograsp(hand, part, plan, root, &opts).map_err(|e| e.in_file(&scene.path))?;
-    let (pose, _, squeezed) = autograsp::squeeze(hand, part, plan, &g, &opts);
+    let (g, pose, squeezed) = match closing {
+        Some(c) => (c.autograsp, c.pose, c.squeeze),
+        None => {
+            let root = root_for(hand, &nalgebra::Isometry3::identity(), approach);
+            let opts = AutograspOptions::default();
+            let g = autograsp(hand, part, plan, root, &opts).map_err(|e| e.in_file(&scene.path))?;
+            let (pose, _, squeezed) = autograsp::squeeze(hand, part, plan, &g, &opts);
+            (g, pose, squeezed)
+        }
+    };
     timings.autograsp_s = clock.elapsed().as_secs_f64();
     let clock = std::time::Instant::now();
     let mut pts = Vec::new();
@@ -403,20 +411,26 @@ pub fn run_scene_on(
     let mut warnings = part_warnings.to_vec();
     let plan = grasp_plan_for(scene.grasp, hand);
     let clock = std::time::Instant::now();
-    // Each approach with its slide along the palm (given approaches that may slide).
-    let approaches: Vec<(Option<f64>, Isometry3<f64>)> = match &scene.approach {
+    // Each approach with its slide along the palm (given approaches that may slide) and, for
+    // the search's finalists, the closing it already made from there.
+    let approaches: Vec<(Option<f64>, Isometry3<f64>, Option<autograsp::Closing>)> = match &scene
+        .approach
+    {
         Approach::Given(a) if scene.slide_mm > 0.0 => {
             let given = scene.part_pose * a;
             let ranked =
                 placement::slide_search(hand, part, &plan, scene.friction, &given, scene.slide_mm);
             if ranked.is_empty() {
                 // Every position starts inside the part: the given one says so.
-                vec![(Some(0.0), given)]
+                vec![(Some(0.0), given, None)]
             } else {
-                ranked.into_iter().map(|(o, a)| (Some(o), a)).collect()
+                ranked
+                    .into_iter()
+                    .map(|(o, a, c)| (Some(o), a, Some(c)))
+                    .collect()
             }
         }
-        Approach::Given(a) => vec![(None, scene.part_pose * a)],
+        Approach::Given(a) => vec![(None, scene.part_pose * a, None)],
         Approach::Auto => {
             let r = placement::placement_search(
                 hand,
@@ -443,10 +457,10 @@ pub fn run_scene_on(
                     format!("grasp.approach = \"auto\": no placement closed the hand on the part{opening}; give an approach"),
                 )
             })?;
-            std::iter::once(r.approach)
-                .chain(r.runners_up)
-                .chain(r.reserves)
-                .map(|a| (None, a))
+            std::iter::once((r.approach, Some(r.closing)))
+                .chain(r.runners_up.into_iter().map(|(a, c)| (a, Some(c))))
+                .chain(r.reserves.into_iter().map(|a| (a, None)))
+                .map(|(a, c)| (None, a, c))
                 .collect()
         }
     };
@@ -457,7 +471,7 @@ pub fn run_scene_on(
     // first that holds, or the best when none does.
     // (its slide along the palm, the attempt)
     let mut tried: Vec<(Option<f64>, Attempt)> = Vec::new();
-    for (k, (slide, approach)) in approaches.iter().enumerate() {
+    for (k, (slide, approach, closing)) in approaches.into_iter().enumerate() {
         // The best is reported whether it holds or not; a runner-up only when it holds, so its
         // hold test may stop at the first drop.
         let run = if k == 0 {
@@ -467,7 +481,17 @@ pub fn run_scene_on(
         };
         // Each try's volume is built beside its hold test: the first is reported whether it
         // holds or not, a runner-up's hull is given up when it drops.
-        let attempt = grasp_from(scene, hand, part, &plan, approach, &areas, run, with_volume);
+        let attempt = grasp_from(
+            scene,
+            hand,
+            part,
+            &plan,
+            &approach,
+            closing,
+            &areas,
+            run,
+            with_volume,
+        );
         let attempt = match attempt {
             Ok(a) => a,
             Err(e) if k == 0 => return Err(e),
@@ -487,7 +511,7 @@ pub fn run_scene_on(
                 ))
                 .collect::<Vec<_>>()
         );
-        tried.push((*slide, attempt));
+        tried.push((slide, attempt));
         if holds {
             break;
         }

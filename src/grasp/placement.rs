@@ -4,7 +4,7 @@
 //! best).
 
 use super::autograsp::{
-    autograsp, pad_point, pose_at, press_travel, squeeze, starts_clear, AutograspOptions,
+    autograsp, pad_point, pose_at, press_travel, squeeze, starts_clear, AutograspOptions, Closing,
 };
 use super::contact::PartShape;
 use super::hand::PosableHand;
@@ -198,6 +198,9 @@ fn envelope_rank(e: &super::contact::Envelope) -> usize {
 pub struct PlacementResult {
     /// Best approach (grasp frame in the part's world frame).
     pub approach: Isometry3<f64>,
+    /// The hand closed and squeezed from it with the default [`AutograspOptions`] (the
+    /// finalists' full evaluation made it).
+    pub closing: Closing,
     /// How many of the plan's [`GraspPlan::pads`] touch the part in it (full evaluation); for a
     /// power grasp, how far it envelops the part (the palm touching counts 1, each finger
     /// wrapped with all three phalanges 1, up to three).
@@ -206,9 +209,9 @@ pub struct PlacementResult {
     pub epsilon: f64,
     /// Candidates screened (not rejected, within the time bound).
     pub evaluated: usize,
-    /// The other finalists' approaches, best first (for a caller that rejects the best, e.g.
-    /// by the hold test).
-    pub runners_up: Vec<Isometry3<f64>>,
+    /// The other finalists' approaches with their closings, best first (for a caller that
+    /// rejects the best, e.g. by the hold test).
+    pub runners_up: Vec<(Isometry3<f64>, Closing)>,
     /// The candidates ranked next by the screening alone (not evaluated in full), best first:
     /// for a caller whose finalists all fail ([`RESERVES`]).
     pub reserves: Vec<Isometry3<f64>>,
@@ -274,7 +277,8 @@ fn starts_deep_inside(
 /// pads' contacts alone for a plan with [`GraspPlan::pads`]; with `squeezed`,
 /// measured after the [`squeeze`], as the scene is; with `envelope_first`, the first key is how
 /// far the grasp envelops the part ([`envelope_rank`]) instead of the pads touching. `None`
-/// when the autograsp refuses the start.
+/// when the autograsp refuses the start. With `squeezed`, also the [`Closing`] (the options
+/// then the default ones: a finalist's closing, which the scene then need not compute again).
 #[allow(clippy::too_many_arguments)]
 fn closed_quality(
     hand: &dyn PosableHand,
@@ -288,12 +292,20 @@ fn closed_quality(
     squeezed: bool,
     envelope_first: bool,
     index: usize,
-) -> Option<Score> {
+) -> Option<(Score, Option<Closing>)> {
     let g = autograsp(hand, part, plan, root, opts).ok()?;
-    let pose = if squeezed {
-        squeeze(hand, part, plan, &g, opts).0
+    let (pose, closing) = if squeezed {
+        let (pose, _, s) = squeeze(hand, part, plan, &g, opts);
+        (
+            pose.clone(),
+            Some(Closing {
+                autograsp: g,
+                pose,
+                squeeze: s,
+            }),
+        )
     } else {
-        g.pose
+        (g.pose, None)
     };
     let mut pts = Vec::new();
     hand.pose_vertices(&pose, &mut pts);
@@ -322,7 +334,10 @@ fn closed_quality(
     } else {
         -super::quality::closure_distance(&w)
     };
-    Some((index, pads, e.epsilon, closure, c.total_area_mm2()))
+    Some((
+        (index, pads, e.epsilon, closure, c.total_area_mm2()),
+        closing,
+    ))
 }
 
 /// A candidate's score: (its index, pads of the plan touching or, ranking by the envelope, its
@@ -358,7 +373,7 @@ fn by_quality(a: &Score, b: &Score) -> std::cmp::Ordering {
 /// then down that ranking, `finalists` at a time until `finalists` succeed, closed by the
 /// default autograsp, squeezed and scored in full. `envelope_first`: the first ranking key
 /// is how far the grasp envelops the part ([`envelope_rank`]) instead of the plan's pads.
-/// Returns the finalists' scores, best first (ties to the lower index), how many candidates
+/// Returns the finalists' scores and closings, best first (ties to the lower index), how many candidates
 /// closed in the screening, and the next [`RESERVES`] candidates of the screening's ranking
 /// (indices, not evaluated in full).
 #[allow(clippy::too_many_arguments)]
@@ -372,7 +387,7 @@ fn screen_and_rank(
     finalists: usize,
     time_limit_s: f64,
     envelope_first: bool,
-) -> (Vec<Score>, usize, Vec<usize>) {
+) -> (Vec<(Score, Closing)>, usize, Vec<usize>) {
     use rayon::prelude::*;
     let gf = grasp_frame(hand);
     let coarse = screening_options(plan);
@@ -431,6 +446,7 @@ fn screen_and_rank(
                         return None;
                     }
                     score(i, root, &coarse, &coarse_sample, SCREEN_CONE_EDGES, false)
+                        .map(|(s, _)| s)
                 })
                 .collect::<Vec<_>>()
                 .into_iter()
@@ -453,7 +469,7 @@ fn screen_and_rank(
     // Down the ranking, `finalists` at a time, until `finalists` full evaluations succeed.
     let step = finalists.max(1);
     let mut pos = 0;
-    let mut finals: Vec<Score> = Vec::new();
+    let mut finals: Vec<(Score, Closing)> = Vec::new();
     while finals.len() < finalists && pos < ranked.len() {
         let end = (pos + step).min(ranked.len());
         finals.extend(
@@ -461,20 +477,21 @@ fn screen_and_rank(
                 .par_iter()
                 .filter_map(|s| {
                     let i = s.0;
-                    score(
+                    let (s, closing) = score(
                         i,
                         root_of(i)?,
                         &full,
                         &full_sample,
                         super::quality::CONE_EDGES,
                         true,
-                    )
+                    )?;
+                    Some((s, closing?))
                 })
-                .collect::<Vec<Score>>(),
+                .collect::<Vec<_>>(),
         );
         pos = end;
     }
-    finals.sort_by(better_first);
+    finals.sort_by(|a, b| better_first(&a.0, &b.0));
     log::debug!(
         "placement search: finalists {:.2} s",
         started.elapsed().as_secs_f64()
@@ -550,7 +567,7 @@ pub const SLIDE_FINALISTS: usize = 3;
 /// differently, as a person's grip moves along the palm to suit the hand.
 ///
 /// `approach` is the grasp frame in the part's world. Returns the positions, best first, as
-/// (offset along the palm, mm; approach), the finalists only; a position where the hand starts
+/// (offset along the palm, mm; approach; the closing made from there), the finalists only; a position where the hand starts
 /// inside the part is left out (empty when all are). Among equal scores the smaller slide
 /// comes first.
 pub fn slide_search(
@@ -560,7 +577,7 @@ pub fn slide_search(
     mu: f64,
     approach: &Isometry3<f64>,
     slide_mm: f64,
-) -> Vec<(f64, Isometry3<f64>)> {
+) -> Vec<(f64, Isometry3<f64>, Closing)> {
     let n = (slide_mm / SLIDE_STEP_MM + 1e-9).floor() as i64;
     // Nearest the given approach first, so that ties go to the smaller slide.
     let offsets: Vec<f64> = std::iter::once(0)
@@ -580,8 +597,8 @@ pub fn slide_search(
         false,
     );
     finals
-        .iter()
-        .map(|s| (offsets[s.0], at(offsets[s.0])))
+        .into_iter()
+        .map(|(s, c)| (offsets[s.0], at(offsets[s.0]), c))
         .collect()
 }
 
@@ -705,16 +722,21 @@ pub fn placement_search(
         "placement search: {evaluated} of {candidates} candidates screened, {} finalists",
         finals.len(),
     );
-    let best = *finals.first()?;
+    let best = finals.first()?.0;
+    // Every finalist was screened, so it has an approach.
+    let finalists: Vec<(Isometry3<f64>, Closing)> = finals
+        .into_iter()
+        .filter_map(|(s, c)| Some((approach_of(s.0)?, c)))
+        .collect();
+    let mut finalists = finalists.into_iter();
+    let (approach, closing) = finalists.next()?;
     Some(PlacementResult {
-        approach: approach_of(best.0)?,
+        approach,
+        closing,
         pads_touching: best.1,
         epsilon: best.2,
         evaluated,
-        runners_up: finals[1..]
-            .iter()
-            .filter_map(|s| approach_of(s.0))
-            .collect(),
+        runners_up: finalists.collect(),
         reserves: reserves.into_iter().filter_map(approach_of).collect(),
     })
 }
@@ -852,7 +874,17 @@ mod tests {
         let opts = AutograspOptions::default();
         let root = root_for(&hand, &Isometry3::identity(), &r.approach);
         let g = autograsp(&hand, &part, &plan, root, &opts).unwrap();
-        let (pose, _, _) = squeeze(&hand, &part, &plan, &g, &opts);
+        let (pose, _, squeezed) = squeeze(&hand, &part, &plan, &g, &opts);
+        // The closing the search hands over is the one the scene would make from its approach.
+        assert_eq!(r.closing.autograsp, g);
+        assert_eq!(r.closing.pose, pose);
+        assert_eq!(r.closing.squeeze, squeezed);
+        for (a, c) in &r.runners_up {
+            let root = root_for(&hand, &Isometry3::identity(), a);
+            let g = autograsp(&hand, &part, &plan, root, &opts).unwrap();
+            assert_eq!(c.pose, squeeze(&hand, &part, &plan, &g, &opts).0);
+            assert_eq!(c.autograsp, g);
+        }
         let mut pts = Vec::new();
         hand.pose_vertices(&pose, &mut pts);
         let areas = vertex_areas(hand.rest_mesh());
@@ -862,8 +894,9 @@ mod tests {
         assert_eq!(r.pads_touching, envelope_rank(&e));
         // Reserves: a full set, none of them a finalist.
         assert_eq!(r.reserves.len(), RESERVES);
-        let finalists: Vec<&Isometry3<f64>> =
-            std::iter::once(&r.approach).chain(&r.runners_up).collect();
+        let finalists: Vec<&Isometry3<f64>> = std::iter::once(&r.approach)
+            .chain(r.runners_up.iter().map(|(a, _)| a))
+            .collect();
         for a in &r.reserves {
             assert!(finalists.iter().all(|f| *f != a), "{a:?}");
         }
