@@ -277,8 +277,8 @@ fn starts_deep_inside(
 /// pads' contacts alone for a plan with [`GraspPlan::pads`]; with `squeezed`,
 /// measured after the [`squeeze`], as the scene is; with `envelope_first`, the first key is how
 /// far the grasp envelops the part ([`envelope_rank`]) instead of the pads touching. `None`
-/// when the autograsp refuses the start. With `squeezed`, also the [`Closing`] (the options
-/// then the default ones: a finalist's closing, which the scene then need not compute again).
+/// when the autograsp refuses the start. With `squeezed`, also the [`Closing`] made with `opts`
+/// (a finalist's, with the default options: the scene takes it instead of closing again).
 #[allow(clippy::too_many_arguments)]
 fn closed_quality(
     hand: &dyn PosableHand,
